@@ -1,0 +1,28 @@
+"""physdsl: a probabilistic programming language for physical scenes.
+
+Public API: ``load``, ``parse``, ``compile`` and the error types. Physics and gradient work
+runs in float64 by default; set ``PHYSDSL_FLOAT32=1`` to trade accuracy for speed.
+"""
+from __future__ import annotations
+
+import os
+
+import jax
+
+if os.environ.get("PHYSDSL_FLOAT32", "") not in ("1", "true", "yes"):
+    jax.config.update("jax_enable_x64", True)
+
+from .errors import (  # noqa: E402
+    DataError, InferenceError, ModelError, PhysError, PhysErrors, PhysImportError,
+    PhysNameError, PhysStructureError, PhysSyntaxError, PhysTypeError, PhysUnitError, Span,
+    UsageError,
+)
+from .scene import Scene  # noqa: E402
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "DataError", "InferenceError", "ModelError", "PhysError", "PhysErrors", "PhysImportError",
+    "PhysNameError", "PhysStructureError", "PhysSyntaxError", "PhysTypeError", "PhysUnitError",
+    "Scene", "Span", "UsageError", "__version__",
+]

@@ -1,0 +1,88 @@
+"""The ``physdsl`` command line: a thin layer over the Python API.
+
+Each subcommand lives in its own module here and registers itself on ``app`` with a
+``register(app)`` function. ``main`` turns every PhysError into a rendered message and the
+documented exit code (0 ok, 1 model or inference failure, 2 usage or input error).
+"""
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import sys
+
+import typer
+
+from ..errors import PhysError
+
+app = typer.Typer(
+    name="physdsl",
+    help="physdsl: probabilistic programs for physical scenes.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+# Subcommand modules, in the order they appear in --help.
+COMMAND_MODULES = (
+    "lint", "fmt", "infer", "check", "diagnose", "refine", "add_effect",
+    "export", "sample", "render", "track",
+)
+
+
+def _version_callback(value: bool) -> None:
+    if value:
+        from .. import __version__
+
+        typer.echo(f"physdsl {__version__}")
+        raise typer.Exit(0)
+
+
+@app.callback()
+def _root(
+    version: bool = typer.Option(False, "--version", callback=_version_callback, is_eager=True,
+                                 help="Print the version and exit."),
+) -> None:
+    """physdsl: describe a physical scene, fit it to measurements, find what it misses."""
+
+
+def _register_commands() -> None:
+    for name in COMMAND_MODULES:
+        module_name = f"{__name__}.{name}"
+        if importlib.util.find_spec(module_name) is not None:
+            importlib.import_module(module_name).register(app)
+
+
+def report_error(err: PhysError) -> int:
+    """Print a user error to stderr; return its exit code."""
+    print(err.render(), file=sys.stderr)
+    return err.exit_code
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the console script; never lets a traceback reach the user."""
+    _register_commands()
+    try:
+        app(args=argv, standalone_mode=False)
+    except PhysError as err:
+        return report_error(err)
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+    except SystemExit as ex:  # typer.Exit inside standalone_mode=False
+        return int(ex.code or 0)
+    except Exception as ex:  # click usage errors and anything unexpected
+        import click
+
+        if isinstance(ex, click.exceptions.Exit):
+            return ex.exit_code
+        if isinstance(ex, click.ClickException):
+            ex.show()
+            return 2
+        if isinstance(ex, click.exceptions.Abort):
+            print("aborted", file=sys.stderr)
+            return 130
+        print(f"internal error: {type(ex).__name__}: {ex}\n"
+              "This is a bug in physdsl; please report it with the scene file.", file=sys.stderr)
+        return 1
+    return 0
+
