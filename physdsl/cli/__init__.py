@@ -59,30 +59,23 @@ def report_error(err: PhysError) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the console script; never lets a traceback reach the user."""
+    """Entry point of the console script; never lets a traceback reach the user.
+
+    Usage errors are reported by the CLI library with exit code 2; PhysErrors are rendered
+    with their place and hint; anything else is reported as a bug in one line (exit 1).
+    """
     _register_commands()
     try:
-        app(args=argv, standalone_mode=False)
+        app(args=argv, prog_name="physdsl")  # standalone: raises SystemExit with the code
+    except SystemExit as ex:
+        return int(ex.code or 0) if not isinstance(ex.code, str) else 2
     except PhysError as err:
         return report_error(err)
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
-    except SystemExit as ex:  # typer.Exit inside standalone_mode=False
-        return int(ex.code or 0)
-    except Exception as ex:  # click usage errors and anything unexpected
-        import click
-
-        if isinstance(ex, click.exceptions.Exit):
-            return ex.exit_code
-        if isinstance(ex, click.ClickException):
-            ex.show()
-            return 2
-        if isinstance(ex, click.exceptions.Abort):
-            print("aborted", file=sys.stderr)
-            return 130
+    except Exception as ex:  # noqa: BLE001 - last line of defence, reported as a bug
         print(f"internal error: {type(ex).__name__}: {ex}\n"
               "This is a bug in physdsl; please report it with the scene file.", file=sys.stderr)
         return 1
     return 0
-
