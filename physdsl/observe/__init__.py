@@ -1,0 +1,1 @@
+"""Measurements: reading them, predicting them from a rollout, and their likelihood."""
