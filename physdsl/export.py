@@ -378,3 +378,430 @@ def draw_from_fit(fit: ProtoFit, n: int, seed: int = 0) -> dict[str, np.ndarray]
         elif fit.shapes[name]:
             out[name] = out[name].reshape(n, *fit.shapes[name])
     return out
+
+
+# --------------------------------------------------------------------------------------------
+# Writing a fit as .phys text: distributions for marginals, expressions for blocks (SI + unit).
+
+
+def number(x: float, sig: int = 6) -> str:
+    """A float as short .phys number text with ``sig`` significant digits (no exponent sign noise)."""
+    x = float(x)
+    if x == 0 or not math.isfinite(x):
+        return "0" if x == 0 else repr(x)
+    text = f"{x:.{sig}g}"
+    if "e" in text:
+        mant, exp = text.split("e")
+        text = f"{mant}e{int(exp)}"
+    return text
+
+
+def _digits(mean: float, sd: float) -> int:
+    """Significant digits so that rounding ``mean`` moves it by well under 1% of ``sd``."""
+    if sd <= 0:
+        return 12
+    ratio = abs(mean) / sd if mean else 1.0
+    return int(min(max(math.ceil(math.log10(max(ratio, 1.0))) + 4, 4), 15))
+
+
+def with_unit(text: str, unit: str, atom: bool = False) -> str:
+    """``text`` in SI followed by ``unit`` (nothing for dimensionless ``1``)."""
+    if unit in ("", "1"):
+        return text
+    return f"{text} {unit}" if atom else f"({text}) {unit}"
+
+
+def _values(arr, shape, fmt) -> str:
+    """A scalar or a vector literal (``(a, b, c)``) of flat values ``arr``."""
+    items = [fmt(v) for v in np.reshape(arr, -1)]
+    return items[0] if not shape else "(" + ", ".join(items) + ")"
+
+
+def marginal_text(m: Marginal, unit: str) -> str:
+    """The distribution call for a marginal, e.g. ``log_normal(-0.5108, 0.0204)``."""
+    a = m.args
+    if m.dist == "categorical":
+        return "categorical(probs: (" + ", ".join(number(p, 6) for p in a["probs"]) + "))"
+    if m.dist == "beta":
+        return (f"beta({_values(a['concentration1'], m.shape, number)}, "
+                f"{_values(a['concentration0'], m.shape, number)})")
+    locs, scales = np.reshape(a["loc"], -1), np.reshape(a["scale"], -1)
+    digits = max(_digits(lo, s) for lo, s in zip(locs, scales))
+    loc = _values(locs, m.shape, lambda v: number(v, digits))
+    scale = _values(scales, m.shape, lambda v: number(v, 5))
+    if m.dist == "log_normal":  # arguments are of log(value / 1 SI unit): dimensionless
+        return f"log_normal({loc}, {scale})"
+    if m.dist == "normal":
+        return f"normal({with_unit(loc, unit, True)}, {with_unit(scale, unit, True)})"
+    if m.dist == "truncated_normal":
+        parts = [with_unit(loc, unit, True), with_unit(scale, unit, True)]
+        for key in ("low", "high"):
+            if key in a:
+                parts.append(f"{key}: " + with_unit(_values(a[key], m.shape, lambda v: number(v, 12)),
+                                                   unit, True))
+        return "truncated_normal(" + ", ".join(parts) + ")"
+    raise ValueError(f"no text for distribution {m.dist}")
+
+
+def transform_text(support: Support, inner: str) -> str:
+    """The bijection from the real line onto ``support`` applied to expression text ``inner``."""
+    if support.kind == "real":
+        return inner
+    if support.kind == "lower":
+        low = float(support.low)
+        return f"exp({inner})" if low == 0 else f"{number(low, 12)} + exp({inner})"
+    if support.kind == "upper":
+        return f"{number(float(support.high), 12)} - exp({inner})"
+    if support.kind == "interval":
+        low, high = float(support.low), float(support.high)
+        span = f"{number(high - low, 12)} / (1 + exp(-({inner})))"
+        return span if low == 0 else f"{number(low, 12)} + {span}"
+    raise ValueError(f"no transform for a {support.kind} support")
+
+
+def block_texts(block: Block, z_names: Sequence[str], fit: ProtoFit,
+                units: Mapping[str, str]) -> dict[str, str]:
+    """Value text of every unknown of a correlated block: ``transform(mean + L_i . z)``."""
+    comps: dict[str, dict[int, str]] = {}
+    for k, (name, i) in enumerate(block.components):
+        sd = float(np.sqrt(np.sum(block.chol[k] ** 2)))
+        terms = [number(block.mean[k], _digits(block.mean[k], sd))]
+        for j in range(k + 1):
+            c = float(block.chol[k, j])
+            if c == 0.0:
+                continue
+            sign = "-" if c < 0 else "+"
+            terms.append(f"{sign} {number(abs(c), 5)} * {z_names[j]}")
+        inner = " ".join(terms)
+        comps.setdefault(name, {})[i] = transform_text(fit.supports[name].component(i), inner)
+    out = {}
+    for name, parts in comps.items():
+        shape = fit.shapes[name]
+        if shape:
+            text = "(" + ", ".join(parts[i] for i in range(int(np.prod(shape)))) + ")"
+            out[name] = with_unit(text, units.get(name, "1"), atom=True)
+        else:
+            out[name] = with_unit(parts[0], units.get(name, "1"))
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# The scene graph as syntax: dropping parts, locating unknowns, rewriting their values.
+
+CONTACT_SUGAR = {"friction": "contact_friction", "restitution": "restitution",
+                 "rolling_resistance": "rolling_resistance"}
+
+
+def _scene_decl(module):
+    decl = module.scene
+    if decl is None:
+        raise PhysError(f"{module.filename}: no scene to export",
+                        hint="export reads a scene file: `scene NAME { ... }`")
+    return decl
+
+
+def _with_items(module, decl, items):
+    import dataclasses
+
+    new_decl = dataclasses.replace(decl, items=tuple(items))
+    return dataclasses.replace(module, items=tuple(new_decl if i is decl else i for i in module.items))
+
+
+def _walk_exprs(node, found):
+    """Every expression node under ``node`` (any AST value), depth first."""
+    import dataclasses
+
+    if isinstance(node, tuple):
+        for n in node:
+            _walk_exprs(n, found)
+        return
+    if dataclasses.is_dataclass(node) and not isinstance(node, type):
+        found.append(node)
+        for f in dataclasses.fields(node):
+            if f.name not in ("span", "unit_span"):
+                _walk_exprs(getattr(node, f.name), found)
+
+
+def _item_label(item) -> str:
+    from .syntax import ast as A
+
+    if isinstance(item, A.BodyItem):
+        return f"{item.kind} {item.name}"
+    if isinstance(item, A.JointItem):
+        return f"joint {item.name}"
+    if isinstance(item, A.EffectItem):
+        return f"effect {item.effect} on {','.join(item.target)}"
+    if isinstance(item, A.ContactItem):
+        return f"contact {item.a}, {item.b}"
+    if isinstance(item, A.ObserveItem):
+        return f"observe {item.target}.{item.quantity}"
+    if isinstance(item, A.ControlItem):
+        return f"control {item.name}"
+    if isinstance(item, A.Param):
+        return f"param {item.name}"
+    if isinstance(item, A.CameraItem):
+        return f"camera {item.name}"
+    return type(item).__name__
+
+
+def drop_parts(module, drop: Sequence[str] = (), observe: bool = True, duration: float | None = None):
+    """``module`` without the named parts and everything that depends on them.
+
+    A body (or ground) drops the bodies hanging from it through joints, its joints,
+    effects, contacts, controls and observations; ``effect@target`` drops one effect use
+    (contact sugar fields included); ``target.quantity`` drops one observation.
+    ``observe=False`` drops every observation (then ``duration`` in s, if given, is written
+    into the world block when the world has none). Raises a PhysError naming both places
+    when something left still refers to a dropped body or joint.
+    """
+    import dataclasses
+
+    from .syntax import ast as A
+
+    decl = _scene_decl(module)
+    items = list(decl.items)
+    bodies = {i.name: i for i in items if isinstance(i, A.BodyItem)}
+    joints = {i.name: i for i in items if isinstance(i, A.JointItem)}
+    effects = [i for i in items if isinstance(i, A.EffectItem)]
+    contacts = [i for i in items if isinstance(i, A.ContactItem)]
+    observes = [i for i in items if isinstance(i, A.ObserveItem)]
+
+    dead_bodies: set[str] = set()
+    dead_effects: set[tuple[str, tuple[str, ...]]] = set()
+    dead_sugar: set[tuple[str, str, str]] = set()  # (a, b, field)
+    dead_obs: set[tuple[str, str]] = set()
+    for name in drop:
+        if name in bodies:
+            dead_bodies.add(name)
+            continue
+        if "@" in name:
+            eff, _, tgt = name.partition("@")
+            target = tuple(t.strip() for t in tgt.split(","))
+            hits = [e for e in effects if e.effect == eff and e.target == target]
+            sugar = [c for c in contacts if target in ((c.a, c.b), (c.b, c.a))
+                     and c.block is not None
+                     and any(CONTACT_SUGAR.get(getattr(f, "key", "")) == eff for f in c.block.fields)]
+            if hits or sugar:
+                dead_effects |= {(e.effect, e.target) for e in hits}
+                dead_sugar |= {(c.a, c.b, k) for c in sugar for k, v in CONTACT_SUGAR.items() if v == eff}
+                continue
+        elif "." in name:
+            target, _, quantity = name.partition(".")
+            if any(o.target == target and o.quantity == quantity for o in observes):
+                dead_obs.add((target, quantity))
+                continue
+        else:
+            hits = [e for e in effects if e.effect == name]
+            if len(hits) == 1:
+                dead_effects.add((hits[0].effect, hits[0].target))
+                continue
+        choices = sorted(bodies) + [f"{e.effect}@{','.join(e.target)}" for e in effects] \
+            + [f"{o.target}.{o.quantity}" for o in observes]
+        raise UsageError(f"--drop {name}: no body, effect or observation of that name in the scene",
+                         hint="choose from: " + ", ".join(choices))
+
+    # bodies hanging from dropped bodies go too; so do the joints that hold them
+    changed = True
+    while changed:
+        changed = False
+        for j in joints.values():
+            if j.parent in dead_bodies and j.child not in dead_bodies:
+                dead_bodies.add(j.child)
+                changed = True
+    dead_joints = {n for n, j in joints.items() if j.child in dead_bodies or j.parent in dead_bodies}
+    dead_names = dead_bodies | dead_joints
+
+    kept = []
+    removed = []
+    for item in items:
+        gone = False
+        if isinstance(item, A.BodyItem):
+            gone = item.name in dead_bodies
+        elif isinstance(item, A.JointItem):
+            gone = item.name in dead_joints
+        elif isinstance(item, A.ContactItem):
+            gone = item.a in dead_bodies or item.b in dead_bodies
+            if not gone and item.block is not None:
+                fields = tuple(f for f in item.block.fields
+                               if (item.a, item.b, getattr(f, "key", "")) not in dead_sugar)
+                item = dataclasses.replace(item, block=dataclasses.replace(item.block, fields=fields))
+        elif isinstance(item, A.EffectItem):
+            gone = bool(set(item.target) & dead_names) or (item.effect, item.target) in dead_effects
+        elif isinstance(item, A.ControlItem):
+            gone = item.target in dead_names
+        elif isinstance(item, A.ObserveItem):
+            gone = (not observe or item.target in dead_names
+                    or (item.target, item.quantity) in dead_obs)
+        (removed if gone else kept).append(item)
+
+    errors = []
+    declared = {i.name: i for i in removed if isinstance(i, (A.BodyItem, A.JointItem))}
+    for item in kept:
+        nodes: list = []
+        _walk_exprs(item, nodes)
+        for node in nodes:
+            ref = None
+            if isinstance(node, A.Dotted) and node.parts[0] in dead_names:
+                ref = node.parts[0]
+                text = ".".join(node.parts)
+            elif isinstance(node, A.Name) and node.name in dead_names:
+                ref = node.name
+                text = node.name
+            if ref is None:
+                continue
+            gone = declared[ref]
+            where = f" (declared at {gone.span})" if gone.span else ""
+            why = "" if ref in drop else f", dropped with {', '.join(drop)}"
+            errors.append(PhysError(
+                f"'{text}' in {_item_label(item)} refers to {_item_label(gone)}{where}, "
+                f"which is dropped{why}",
+                span=node.span,
+                hint=f"drop {_item_label(item)} too, or replace '{text}' with a value"))
+    if errors:
+        from .errors import PhysErrors
+
+        raise errors[0] if len(errors) == 1 else PhysErrors(errors)
+
+    if not observe and duration is not None:
+        kept = _ensure_duration(kept, duration)
+    return _with_items(module, decl, kept)
+
+
+def _ensure_duration(items, duration: float):
+    """Items with a world block that sets ``duration`` (added when the world has none)."""
+    import dataclasses
+
+    from .syntax import ast as A
+    from .syntax.parser import parse_field
+
+    field = parse_field(f"duration: {number(duration, 10)} s")
+    for k, item in enumerate(items):
+        if isinstance(item, A.WorldItem):
+            if item.block.get("duration") is None:
+                block = dataclasses.replace(item.block, fields=item.block.fields + (field,))
+                items[k] = dataclasses.replace(item, block=block)
+            return items
+    return [A.WorldItem(A.Block((field,)))] + list(items)
+
+
+def _set_field(block, key: str, value, create: bool):
+    """``block`` (possibly None) with field ``key`` set to ``value``; None if absent and not ``create``."""
+    import dataclasses
+
+    from .syntax import ast as A
+
+    if block is None:
+        return A.Block((A.Field(key, value),)) if create else None
+    for k, f in enumerate(block.fields):
+        if isinstance(f, A.Field) and f.key == key:
+            fields = list(block.fields)
+            fields[k] = dataclasses.replace(f, value=value)
+            return dataclasses.replace(block, fields=tuple(fields))
+    if not create:
+        return None
+    return dataclasses.replace(block, fields=block.fields + (A.Field(key, value),))
+
+
+def set_unknown(module, name: str, value):
+    """``module`` with the unknown called ``name`` given ``value`` (an ast Dist or expression).
+
+    Names follow docs/language.md: ``param``, ``body.field``, ``joint.field``,
+    ``effect@target.param`` (contact sugar included; a parameter that only had its library
+    default prior gets a field), ``target.quantity.noise``.
+    """
+    import dataclasses
+
+    from .syntax import ast as A
+
+    decl = _scene_decl(module)
+    items = list(decl.items)
+
+    def done(k, item):
+        items[k] = item
+        return _with_items(module, decl, items)
+
+    if "@" in name:
+        head, _, param = name.rpartition(".")
+        eff, _, tgt = head.partition("@")
+        target = tuple(tgt.split(","))
+        for k, item in enumerate(items):
+            if isinstance(item, A.EffectItem) and item.effect == eff and item.target == target:
+                return done(k, dataclasses.replace(item, block=_set_field(item.block, param, value, True)))
+        for k, item in enumerate(items):
+            if isinstance(item, A.ContactItem) and target in ((item.a, item.b), (item.b, item.a)):
+                for key, e in CONTACT_SUGAR.items():
+                    block = _set_field(item.block, key, value, False) if e == eff else None
+                    if block is not None:
+                        return done(k, dataclasses.replace(item, block=block))
+            if isinstance(item, A.ControlItem) and eff == "control_force" and target == (item.target,):
+                block = _set_field(item.block, param, value, False)
+                if block is not None:
+                    return done(k, dataclasses.replace(item, block=block))
+    else:
+        parts = name.split(".")
+        for k, item in enumerate(items):
+            if len(parts) == 1 and isinstance(item, A.Param) and item.name == name:
+                return done(k, dataclasses.replace(item, value=value))
+            if len(parts) == 2 and isinstance(item, (A.BodyItem, A.JointItem)) \
+                    and item.name == parts[0]:
+                block = _set_field(item.block, parts[1], value, False)
+                if block is not None:
+                    return done(k, dataclasses.replace(item, block=block))
+            if len(parts) == 3 and isinstance(item, A.ObserveItem) \
+                    and (item.target, item.quantity) == tuple(parts[:2]):
+                block = _set_field(item.block, parts[2], value, False)
+                if block is not None:
+                    return done(k, dataclasses.replace(item, block=block))
+    raise PhysError(f"cannot find where unknown '{name}' is written in the scene",
+                    hint=f"return it to its prior with --free {name}")
+
+
+def add_params(module, params: Sequence[tuple[str, str]]):
+    """``module`` with ``param NAME ~ DIST`` items (text) placed first in the scene, after world."""
+    from .syntax import ast as A
+    from .syntax.parser import parse_field
+
+    decl = _scene_decl(module)
+    new = [A.Param(n, parse_field(f"x ~ {d}").value) for n, d in params]
+    items = list(decl.items)
+    at = next((k + 1 for k, i in enumerate(items) if isinstance(i, A.WorldItem)), 0)
+    return _with_items(module, decl, items[:at] + new + items[at:])
+
+
+def rebase_paths(module, src_dir: Path, out_dir: Path):
+    """``module`` with every relative file name (imports found beside the scene, data files,
+    meshes) rewritten relative to ``out_dir`` so the program still finds them there."""
+    import dataclasses
+    import os
+
+    from .syntax import ast as A
+
+    src_dir, out_dir = Path(src_dir).resolve(), Path(out_dir).resolve()
+    if src_dir == out_dir:
+        return module
+
+    def moved(p: str | None, must_exist: bool = False) -> str | None:
+        if p is None or os.path.isabs(p) or (must_exist and not (src_dir / p).exists()):
+            return p
+        return Path(os.path.relpath(src_dir / p, out_dir)).as_posix()
+
+    def fix(node):
+        if isinstance(node, tuple):
+            return tuple(fix(n) for n in node)
+        if isinstance(node, A.Call) and node.func == "mesh":
+            return dataclasses.replace(node, args=tuple(
+                dataclasses.replace(a, value=A.Str(moved(a.value.value), a.value.span))
+                if isinstance(a.value, A.Str) else a for a in node.args))
+        if isinstance(node, A.ObserveItem):
+            return dataclasses.replace(node, file=moved(node.file), times=moved(node.times))
+        if isinstance(node, A.ControlItem):
+            return dataclasses.replace(node, file=moved(node.file))
+        if isinstance(node, A.Import):
+            return dataclasses.replace(node, path=moved(node.path, must_exist=True))
+        if dataclasses.is_dataclass(node) and not isinstance(node, type):
+            changes = {f.name: fix(getattr(node, f.name)) for f in dataclasses.fields(node)
+                       if f.name not in ("span", "unit_span", "comments")}
+            return dataclasses.replace(node, **changes)
+        return node
+
+    return fix(module)
