@@ -544,7 +544,8 @@ def _item_label(item) -> str:
     return type(item).__name__
 
 
-def drop_parts(module, drop: Sequence[str] = (), observe: bool = True, duration: float | None = None):
+def drop_parts(module, drop: Sequence[str] = (), observe: bool = True, duration: float | None = None,
+               source: str | None = None):
     """``module`` without the named parts and everything that depends on them.
 
     A body (or ground) drops the bodies hanging from it through joints, its joints,
@@ -655,7 +656,7 @@ def drop_parts(module, drop: Sequence[str] = (), observe: bool = True, duration:
             errors.append(PhysError(
                 f"'{text}' in {_item_label(item)} refers to {_item_label(gone)}{where}, "
                 f"which is dropped{why}",
-                span=node.span,
+                span=node.span, source=source,
                 hint=f"drop {_item_label(item)} too, or replace '{text}' with a value"))
     if errors:
         from .errors import PhysErrors
@@ -805,3 +806,152 @@ def rebase_paths(module, src_dir: Path, out_dir: Path):
         return node
 
     return fix(module)
+
+
+# --------------------------------------------------------------------------------------------
+# The whole export: posterior -> fit -> program text.
+
+
+def posterior_draws(idata, names: Sequence[str]) -> dict[str, np.ndarray]:
+    """Flattened posterior draws ``{name: (chains * draws, *shape)}`` of the named unknowns."""
+    post = idata.posterior
+    out = {}
+    for n in names:
+        arr = np.asarray(post[n].values, dtype=float)
+        out[n] = arr.reshape(-1, *arr.shape[2:])
+    return out
+
+
+def fit_quality(idata, names: Sequence[str]) -> tuple[float, float]:
+    """(max r-hat, min bulk ESS) over the named unknowns' components (nan when undefined)."""
+    import warnings
+
+    import arviz as az
+
+    if not names:
+        return float("nan"), float("nan")
+    sub = idata.posterior[list(names)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rhat = az.rhat(sub)
+        ess = az.ess(sub, method="bulk")
+    r = [np.nanmax(np.asarray(rhat[n].values)) if np.any(np.isfinite(rhat[n].values)) else np.nan
+         for n in names]
+    e = [np.nanmin(np.asarray(ess[n].values)) if np.any(np.isfinite(ess[n].values)) else np.nan
+         for n in names]
+    r_max = float(np.nanmax(r)) if np.any(np.isfinite(r)) else float("nan")
+    e_min = float(np.nanmin(e)) if np.any(np.isfinite(e)) else float("nan")
+    return r_max, e_min
+
+
+def _z_prefix(scene: Scene, source: str) -> str:
+    prefix = "proto_z"
+    while prefix in source or any(u.name.startswith(prefix) for u in scene.unknowns):
+        prefix = "proto_" + prefix
+    return prefix
+
+
+def _header(scene_path: Path, run: Mapping, fit: ProtoFit, quality, n_draws: int,
+            free, drop, widen, observe, z_names) -> list[str]:
+    from . import __version__
+
+    lines = [f"proto-program exported by physdsl {__version__} from {run.get('scene') or scene_path}"]
+    if run.get("scene_sha256"):
+        lines.append(f"scene sha256 {run['scene_sha256']}")
+    for f, h in (run.get("data_sha256") or {}).items():
+        lines.append(f"data {Path(f).name} sha256 {h}")
+    chains = f"backend {run.get('backend', '?')}, seed {run.get('seed', '?')}, {n_draws} draws"
+    r_max, e_min = quality
+    lines.append(f"posterior: {chains}; r-hat max {r_max:.3f}, ESS min {e_min:.0f}")
+    if fit.blocks:
+        names = list(dict.fromkeys(n for b in fit.blocks for n, _ in b.components))
+        lines.append(f"correlated (multivariate normal, unconstrained space, {z_names[0]}.."
+                     f"{z_names[-1]}): {', '.join(names)}")
+    if fit.marginals:
+        lines.append("independent: " + ", ".join(f"{m.name} {m.dist}" for m in fit.marginals))
+    opts = []
+    if free:
+        opts.append("free " + ", ".join(free))
+    if drop:
+        opts.append("dropped " + ", ".join(drop))
+    if widen != 1.0:
+        opts.append(f"widened x{widen:g}")
+    if not observe:
+        opts.append("no observations (a pure generator)")
+    if opts:
+        lines.append("; ".join(opts))
+    return ["# " + line for line in lines]
+
+
+def export(scene_path: str | Path, idata, *, free: Sequence[str] = (), drop: Sequence[str] = (),
+           widen: float = 1.0, observe: bool = True, out_path: str | Path | None = None,
+           run: Mapping | None = None) -> str:
+    """A .phys program whose priors are the posterior ``idata`` fitted, as text.
+
+    ``free``: unknowns that keep their original prior; ``drop``: bodies, effects
+    (``effect@target``) or observations (``target.quantity``) removed with what depends on
+    them; ``widen``: factor on every unconstrained scale; ``observe=False``: no observe
+    blocks (a pure generator). ``out_path``: where the text will be written (relative file
+    names are rewritten to work from there; default: beside the scene). ``run``: the run's
+    run.json contents, for the header. The text parses, resolves and is ``fmt``-stable.
+    """
+    from . import syntax
+    from .syntax import ast as A
+
+    scene_path = Path(scene_path)
+    source = scene_path.read_text(encoding="utf-8")
+    scene = syntax.loads(source, filename=str(scene_path), base_dir=scene_path.parent)
+    run = dict(run or {})
+    run.setdefault("scene", str(scene_path))
+    posterior_vars = set(idata.posterior.data_vars)
+    names = {u.name for u in scene.unknowns}
+    bad = [f for f in free if f not in names]
+    if bad:
+        raise UsageError(f"--free {bad[0]}: no unknown of that name in {scene_path}",
+                         hint="unknowns: " + ", ".join(sorted(names)))
+    module = syntax.parse(source, str(scene_path))
+    module = drop_parts(module, drop, observe, duration=scene.duration, source=source)
+    reduced = syntax.loads(syntax.print_module(module), filename=str(scene_path),
+                           base_dir=scene_path.parent)
+    targets = [u for u in reduced.unknowns if u.name in posterior_vars and u.name not in free]
+    draws = posterior_draws(idata, [u.name for u in targets])
+    for u in targets:
+        if tuple(draws[u.name].shape[1:]) != tuple(u.shape):
+            raise PhysError(f"posterior of '{u.name}' has shape {draws[u.name].shape[1:]}, the "
+                            f"scene says {tuple(u.shape)}", span=u.span,
+                            hint="export with the scene the posterior was fitted to")
+    means = {n: d.mean(axis=0) for n, d in draws.items()}
+    supports = {u.name: prior_support(u, means) for u in targets}
+    fit = fit_draws(draws, supports, widen=widen)
+    units = {u.name: u.unit for u in targets}
+    z_prefix = _z_prefix(scene, source)
+    n_z = sum(len(b.mean) for b in fit.blocks)
+    z_names = [f"{z_prefix}{k + 1}" for k in range(n_z)]
+    k = 0
+    for b in fit.blocks:
+        texts = block_texts(b, z_names[k:k + len(b.mean)], fit, units)
+        k += len(b.mean)
+        for name, text in texts.items():
+            module = set_unknown(module, name, _snippet(f"x: {text}"))
+    for m in fit.marginals:
+        module = set_unknown(module, m.name, _snippet(f"x ~ {marginal_text(m, units[m.name])}"))
+    if z_names:
+        module = add_params(module, [(z, "normal(0, 1)") for z in z_names])
+    out_dir = Path(out_path).parent if out_path is not None else scene_path.parent
+    module = rebase_paths(module, scene_path.parent, out_dir)
+    header = _header(scene_path, run, fit, fit_quality(idata, [u.name for u in targets]),
+                     len(next(iter(draws.values()))) if draws else 0, free, drop, widen,
+                     observe, z_names)
+    text = syntax.format_source("\n".join(header) + "\n\n" + syntax.print_module(module))
+    syntax.loads(text, filename=str(out_path or scene_path), base_dir=out_dir)  # must resolve
+    del A
+    return text
+
+
+def _snippet(text: str):
+    """The value (expression or Dist) of a one-field snippet ``key: value`` / ``key ~ dist``."""
+    from .syntax.ast import strip_spans
+    from .syntax.parser import parse_field
+
+    return strip_spans(parse_field(text).value)
+
