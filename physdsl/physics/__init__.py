@@ -1,0 +1,9 @@
+"""Differentiable rigid-body physics in JAX: a checked Scene in, a pure rollout function out.
+
+``build_simulator(scene)`` builds the static Model (tree, joints, effects, contact candidates);
+``Simulator.simulate(values)`` evaluates every Expr from the unknowns' values and integrates.
+"""
+from .model import Model, build_model
+from .simulator import Rollout, Simulator, build_simulator
+
+__all__ = ["Model", "Rollout", "Simulator", "build_model", "build_simulator"]

@@ -1,0 +1,7 @@
+"""linear_drag: F = -b v at the centre of mass (Stokes drag)."""
+from .base import com_velocity, register, wrenches
+
+
+@register("linear_drag", ("body",))
+def linear_drag(model, site, p, ctx):
+    return wrenches(ctx, site.bodies, -p["coefficient"] * com_velocity(ctx, site.bodies))

@@ -1,0 +1,136 @@
+"""Forward kinematics over the tree: body poses, spatial velocities, motion subspaces, Jacobians.
+
+Each body's pose is ``D_i`` (the rigid motion taking its reference pose to its current pose)
+applied to its reference pose, with D_i = D_parent o J_i(q_i) and J_i the joint's motion at
+the reference configuration. Motion subspaces S_i (6 x nv_i) are world-frame at the origin.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax.numpy as jnp
+
+from .model import Model
+from .spatial import (cross_motion, normalize, quat_axis_angle, quat_conj, quat_mul,
+                      quat_to_mat, skew, spatial_inertia)
+
+
+class Kin(NamedTuple):
+    pos: jnp.ndarray  # (B, 3) body frame origins, world
+    quat: jnp.ndarray  # (B, 4) body -> world
+    rot: jnp.ndarray  # (B, 3, 3)
+    com: jnp.ndarray  # (B, 3) centres of mass, world
+    vel: jnp.ndarray  # (B, 6) spatial velocities (omega, v_O)
+    jac: jnp.ndarray  # (B, 6, nv) spatial Jacobians: vel[i] = jac[i] @ v
+    bias_acc: jnp.ndarray  # (B, 6) c_i = dS_i/dt qdot_i
+    inertia: jnp.ndarray  # (B, 6, 6) spatial inertias at the origin
+    S: tuple  # per body (6, nv_i) motion subspace
+    q: jnp.ndarray
+    v: jnp.ndarray
+
+
+def forward_kinematics(model: Model, prm: dict, q, v) -> Kin:
+    """Poses, velocities, Jacobians and spatial inertias of every body at state (q, v)."""
+    B, nv = model.nbody, model.nv
+    dtype = q.dtype if q.size else prm["ref_pos"].dtype
+    ident = (jnp.array([1.0, 0.0, 0.0, 0.0], dtype=dtype), jnp.zeros(3, dtype=dtype))
+    D: list = [None] * B
+    pos: list = [None] * B
+    quat: list = [None] * B
+    vel: list = [None] * B
+    jac: list = [None] * B
+    cacc: list = [None] * B
+    S: list = [None] * B
+    zero6 = jnp.zeros(6, dtype=dtype)
+    for i in model.order:
+        tj = model.joints[i]
+        qD_p, tD_p = D[tj.parent] if tj.parent >= 0 else ident
+        v_p = vel[tj.parent] if tj.parent >= 0 else zero6
+        J_p = jac[tj.parent] if tj.parent >= 0 else jnp.zeros((6, nv), dtype=dtype)
+        R_p = quat_to_mat(qD_p)
+        qi = q[tj.qadr:tj.qadr + tj.nq]
+        vi = v[tj.vadr:tj.vadr + tj.nv]
+        ref_p, ref_q = prm["ref_pos"][i], prm["ref_quat"][i]
+        c = zero6
+        if tj.kind == "fixed":
+            qD, tD = qD_p, tD_p
+            Si = jnp.zeros((6, 0), dtype=dtype)
+        elif tj.kind == "hinge":
+            a, p = prm["axis"][i], prm["anchor"][i]
+            qJ = quat_axis_angle(a, qi[0])
+            qD = quat_mul(qD_p, qJ)
+            tD = R_p @ (p - quat_to_mat(qJ) @ p) + tD_p
+            a_w, p_w = R_p @ a, R_p @ p + tD_p
+            Si = jnp.concatenate([a_w, jnp.cross(p_w, a_w)])[:, None]
+        elif tj.kind == "slider":
+            a = prm["axis"][i]
+            qD, a_w = qD_p, R_p @ a
+            tD = a_w * qi[0] + tD_p
+            Si = jnp.concatenate([jnp.zeros(3, dtype=dtype), a_w])[:, None]
+        elif tj.kind == "ball":
+            p = prm["anchor"][i]
+            qQ = normalize(qi)
+            RQ = quat_to_mat(qQ)
+            qD = quat_mul(qD_p, qQ)
+            tD = R_p @ (p - RQ @ p) + tD_p
+            E = R_p @ RQ
+            Si = jnp.concatenate([E, skew(R_p @ p + tD_p) @ E], 0)
+        elif tj.kind == "free":
+            x, qb = qi[:3], normalize(qi[3:])
+            R = quat_to_mat(qb)
+            qD = quat_mul(qb, quat_conj(ref_q))
+            tD = x - quat_to_mat(qD) @ ref_p
+            St = jnp.concatenate([jnp.zeros((3, 3), dtype=dtype), jnp.eye(3, dtype=dtype)], 0)
+            Sr = jnp.concatenate([R, skew(x) @ R], 0)
+            Si = jnp.concatenate([St, Sr], 1)
+        else:  # pragma: no cover - model.py rejects other kinds
+            raise ValueError(tj.kind)
+        D[i] = (qD, tD)
+        quat[i] = normalize(quat_mul(qD, ref_q))
+        pos[i] = quat_to_mat(qD) @ ref_p + tD
+        vel[i] = v_p + (Si @ vi if tj.nv else zero6)
+        if tj.kind == "free":
+            c = cross_motion(vel[i], Si[:, 3:] @ vi[3:]) + cross_motion(v_p, Si[:, :3] @ vi[:3])
+        elif tj.nv:
+            c = cross_motion(v_p, Si @ vi)
+        cacc[i] = c
+        S[i] = Si
+        jac[i] = J_p.at[:, tj.vadr:tj.vadr + tj.nv].set(Si) if tj.nv else J_p
+    pos_a, quat_a = jnp.stack(pos), jnp.stack(quat)
+    rot = quat_to_mat(quat_a)
+    com = pos_a + jnp.einsum("bij,bj->bi", rot, prm["com"])
+    I_world = rot @ prm["inertia"] @ jnp.swapaxes(rot, -1, -2)
+    inertia6 = jnp.stack([spatial_inertia(prm["mass"][i], I_world[i], com[i]) for i in range(B)])
+    return Kin(pos_a, quat_a, rot, com, jnp.stack(vel), jnp.stack(jac), jnp.stack(cacc),
+               inertia6, tuple(S), q, v)
+
+
+def point_jacobian(kin: Kin, body: int, point):
+    """(3, nv) Jacobian of the world velocity of the body-fixed point currently at ``point``."""
+    J = kin.jac[body]
+    return J[3:] - skew(point) @ J[:3]
+
+
+def point_velocity(kin: Kin, body: int, point):
+    """World velocity of the body-fixed point currently at ``point``."""
+    w, vo = kin.vel[body, :3], kin.vel[body, 3:]
+    return vo + jnp.cross(w, point)
+
+
+def integrate_q(model: Model, q, v, h):
+    """q advanced by velocity v over time h (quaternions on the manifold, renormalised)."""
+    from .spatial import quat_integrate
+
+    parts = []
+    for i in model.order:
+        tj = model.joints[i]
+        qi = q[tj.qadr:tj.qadr + tj.nq]
+        vi = v[tj.vadr:tj.vadr + tj.nv]
+        if tj.kind in ("hinge", "slider"):
+            parts.append(qi + h * vi)
+        elif tj.kind == "ball":
+            parts.append(quat_integrate(qi, vi, h))
+        elif tj.kind == "free":
+            parts.append(qi[:3] + h * vi[:3])
+            parts.append(quat_integrate(qi[3:], vi[3:], h))
+    return jnp.concatenate(parts) if parts else q

@@ -1,0 +1,272 @@
+"""The static Model of a Scene: kinematic tree, joint types, q/v index ranges, shapes, effect sites.
+
+Nothing here depends on unknown values; numbers live in the params pytree (``params.py``).
+Every body is a tree node with one tree joint to its parent (-1 = world): ``free`` (7 q, 6 v),
+``ball`` (4, 3), ``hinge``/``slider`` (1, 1) or ``fixed`` (0, 0, rigidly welded to the parent).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import ModelError
+from ..scene import Scene
+
+DOFS = {"free": (7, 6), "ball": (4, 3), "hinge": (1, 1), "slider": (1, 1), "fixed": (0, 0)}
+SHAPES = ("sphere", "box", "cylinder", "capsule", "plane", "mesh")
+
+
+@dataclass(frozen=True)
+class TreeJoint:
+    """The joint between body ``body`` and its parent, with its slices into q and v."""
+
+    kind: str
+    body: int
+    parent: int  # -1: world
+    qadr: int
+    nq: int
+    vadr: int
+    nv: int
+    scene_joint: int | None  # index into scene.joints, None for implicit free/weld joints
+    dh: bool = False
+
+
+@dataclass(frozen=True)
+class Site:
+    """Where one effect use acts: body indices, scene joint index, tree dofs, static tables."""
+
+    effect: str
+    key: str
+    index: int  # position in scene.effects
+    bodies: tuple[int, ...] = ()
+    joint: int | None = None
+    dofs: tuple[int, ...] = ()
+    tables: dict = field(default_factory=dict, hash=False, compare=False)
+    contacts: tuple[int, ...] = ()  # candidate contact rows of a pair (rolling resistance)
+
+
+@dataclass(frozen=True)
+class ContactPair:
+    """A candidate contact pair: bodies a, b, their shape kinds, and its rows in contact arrays."""
+
+    a: int
+    b: int
+    kind_a: str
+    kind_b: str
+    rows: tuple[int, ...]
+    friction: int | None  # index of the contact_friction effect use, if any
+    restitution: int | None
+
+
+@dataclass(frozen=True, eq=False)
+class Model:
+    """Static structure; hashable by identity so it can be a jit static argument."""
+
+    body_names: tuple[str, ...]
+    joint_names: tuple[str, ...]
+    shape_kinds: tuple[str | None, ...]
+    joints: tuple[TreeJoint, ...]  # one per body, indexed by body
+    order: tuple[int, ...]  # topological order (parents first)
+    children: tuple[tuple[int, ...], ...]
+    nq: int
+    nv: int
+    sites: tuple[Site, ...]
+    pairs: tuple[ContactPair, ...]
+    ncon: int
+    integrator: str
+    contact_model: str
+    dt: float
+    substeps: int
+    nsteps: int  # recorded steps after t = 0
+
+    @property
+    def nbody(self) -> int:
+        return len(self.body_names)
+
+    def ancestors_dofs(self, body: int) -> tuple[int, ...]:
+        """v indices of all joints on the path from the world to ``body``."""
+        out: list[int] = []
+        b = body
+        while b >= 0:
+            j = self.joints[b]
+            out.extend(range(j.vadr, j.vadr + j.nv))
+            b = j.parent
+        return tuple(sorted(out))
+
+
+def _tree(scene: Scene):
+    names = [b.name for b in scene.bodies]
+    index = {n: i for i, n in enumerate(names)}
+    if len(index) != len(names):
+        raise ModelError("two bodies share a name", hint="give every body its own name")
+    parent = [-1] * len(names)
+    kind: list[str | None] = [None] * len(names)
+    sj: list[int | None] = [None] * len(names)
+    for ji, j in enumerate(scene.joints):
+        if j.child not in index:
+            raise ModelError(f"joint '{j.name}' moves unknown body '{j.child}'", span=j.span)
+        if j.parent != "world" and j.parent not in index:
+            raise ModelError(f"joint '{j.name}' hangs from unknown body '{j.parent}'", span=j.span)
+        c = index[j.child]
+        if sj[c] is not None:
+            raise ModelError(f"body '{j.child}' is the child of two joints", span=j.span,
+                             hint="a body has at most one parent joint; use a pair spring for loops")
+        if j.kind not in DOFS:
+            raise ModelError(f"unknown joint kind '{j.kind}'", span=j.span,
+                             hint="use hinge, slider, ball, free or fixed")
+        if scene.bodies[c].fixed:
+            raise ModelError(f"body '{j.child}' is fixed but moved by joint '{j.name}'", span=j.span,
+                             hint="remove `fixed: true` or the joint")
+        if j.kind == "free" and j.parent != "world":
+            raise ModelError(f"free joint '{j.name}' must hang from world", span=j.span,
+                             hint="a body without a joint already moves freely")
+        if j.dh is not None and j.kind not in ("hinge", "slider"):
+            raise ModelError(f"Denavit-Hartenberg parameters need a hinge or slider, not {j.kind}",
+                             span=j.span)
+        if j.kind in ("hinge", "slider") and j.axis is None and j.dh is None:
+            raise ModelError(f"{j.kind} joint '{j.name}' has no axis", span=j.span,
+                             hint="add `axis: (x, y, z)` (world frame at the reference pose)")
+        parent[c] = -1 if j.parent == "world" else index[j.parent]
+        kind[c] = j.kind
+        sj[c] = ji
+    for i, b in enumerate(scene.bodies):
+        if kind[i] is None:
+            is_fixed = b.fixed or (b.shape is not None and b.shape.kind == "plane")
+            kind[i] = "fixed" if is_fixed else "free"
+        if kind[i] != "fixed" and b.shape is not None and b.shape.kind == "plane":
+            raise ModelError(f"plane '{b.name}' cannot move", span=b.span,
+                             hint="planes are fixed; use a thin box for a moving slab")
+        if b.shape is not None and b.shape.kind not in SHAPES:
+            raise ModelError(f"unknown shape '{b.shape.kind}' of body '{b.name}'", span=b.span)
+    order: list[int] = []
+    state = [0] * len(names)  # 0 new, 1 visiting, 2 done
+
+    def visit(i: int):
+        if state[i] == 2:
+            return
+        if state[i] == 1:
+            raise ModelError(f"joints form a loop through body '{names[i]}'",
+                             hint="joints must form a tree rooted at world")
+        state[i] = 1
+        if parent[i] >= 0:
+            visit(parent[i])
+        state[i] = 2
+        order.append(i)
+
+    for i in range(len(names)):
+        visit(i)
+    return names, index, parent, kind, sj, order
+
+
+def build_model(scene: Scene) -> Model:
+    """Static Model of ``scene``; raises ModelError for unsupported structure."""
+    from .effects import EFFECTS
+
+    names, index, parent, kind, sj, order = _tree(scene)
+    joints: list[TreeJoint | None] = [None] * len(names)
+    qa = va = 0
+    for i in order:
+        nq, nv = DOFS[kind[i]]
+        dh = sj[i] is not None and scene.joints[sj[i]].dh is not None
+        joints[i] = TreeJoint(kind[i], i, parent[i], qa, nq, va, nv, sj[i], dh)
+        qa += nq
+        va += nv
+    children = tuple(tuple(c for c in order if parent[c] == i) for i in range(len(names)))
+    shape_kinds = tuple(b.shape.kind if b.shape is not None else None for b in scene.bodies)
+    for i, b in enumerate(scene.bodies):
+        if kind[i] != "fixed" and b.mass is None and b.density is None:
+            raise ModelError(f"body '{b.name}' has no mass", span=b.span,
+                             hint="give `mass:` or `density:`")
+        if kind[i] != "fixed" and b.shape is None and (b.inertia is None or b.mass is None):
+            raise ModelError(f"body '{b.name}' has no shape, so it needs mass and inertia", span=b.span)
+
+    # contact candidates (rows assigned after detection sizes are known)
+    pairs: list[ContactPair] = []
+    ncon = 0
+    eff_index = {}
+    for k, use in enumerate(scene.effects):
+        if len(use.target) == 2:
+            eff_index[(use.effect, frozenset(use.target))] = k
+    if scene.contact_pairs:
+        try:
+            from . import contact as contact_mod
+        except ImportError as exc:
+            raise ModelError("this scene has contacts but the contact module is not available",
+                             hint="install the full physdsl package") from exc
+        for a, b in scene.contact_pairs:
+            for n in (a, b):
+                if n not in index:
+                    raise ModelError(f"contact pair names unknown body '{n}'")
+            ia, ib = index[a], index[b]
+            ka, kb = shape_kinds[ia], shape_kinds[ib]
+            if ka is None or kb is None:
+                raise ModelError(f"contact pair ({a}, {b}) needs shapes on both bodies")
+            k = _contact_count(contact_mod, ka, kb)
+            pairs.append(ContactPair(ia, ib, ka, kb, tuple(range(ncon, ncon + k)),
+                                     eff_index.get(("contact_friction", frozenset((a, b)))),
+                                     eff_index.get(("restitution", frozenset((a, b))))))
+            ncon += k
+
+    sites = []
+    jindex = {j.name: i for i, j in enumerate(scene.joints)}
+    for k, use in enumerate(scene.effects):
+        if use.effect not in EFFECTS:
+            raise ModelError(f"effect '{use.effect}' has no physics implementation", span=use.span,
+                             hint="known effects: " + ", ".join(sorted(EFFECTS)))
+        bodies: tuple[int, ...] = ()
+        joint = None
+        dofs: tuple[int, ...] = ()
+        rows: tuple[int, ...] = ()
+        if use.target == ("world",):
+            bodies = tuple(range(len(names)))
+        else:
+            for t in use.target:
+                if t in index:
+                    bodies += (index[t],)
+                elif t in jindex and len(use.target) == 1:
+                    joint = jindex[t]
+                    tj = joints[index[scene.joints[joint].child]]
+                    dofs = tuple(range(tj.vadr, tj.vadr + tj.nv))
+                else:
+                    raise ModelError(f"effect '{use.effect}' targets unknown '{t}'", span=use.span)
+            if len(use.target) == 2:
+                for p in pairs:
+                    if {p.a, p.b} == set(bodies):
+                        rows = p.rows
+        EFFECTS[use.effect].check(scene, use, bodies, joint)
+        sites.append(Site(use.effect, use.key, k, bodies, joint, dofs, dict(use.tables), rows))
+
+    if scene.world.integrator not in ("semi_implicit_euler", "rk4"):
+        raise ModelError(f"unknown integrator '{scene.world.integrator}'",
+                         hint="use semi_implicit_euler or rk4")
+    if scene.world.contact_model not in ("lcp", "compliant"):
+        raise ModelError(f"unknown contact model '{scene.world.contact_model}'", hint="use lcp or compliant")
+    dt = float(scene.world.timestep)
+    if not dt > 0:
+        raise ModelError("timestep must be positive")
+    nsteps = int(np.ceil(scene.duration / dt - 1e-9))
+    return Model(
+        body_names=tuple(names), joint_names=tuple(j.name for j in scene.joints),
+        shape_kinds=shape_kinds, joints=tuple(joints), order=tuple(order), children=children,
+        nq=qa, nv=va, sites=tuple(sites), pairs=tuple(pairs), ncon=ncon,
+        integrator=scene.world.integrator, contact_model=scene.world.contact_model,
+        dt=dt, substeps=max(int(scene.world.substeps), 1), nsteps=max(nsteps, 1),
+    )
+
+
+def _contact_count(contact_mod, ka: str, kb: str) -> int:
+    """Number K of contact points the detector returns for a pair of shape kinds (static)."""
+    import jax
+    import jax.numpy as jnp
+
+    z3, q = jnp.zeros(3), jnp.array([1.0, 0.0, 0.0, 0.0])
+    size = jnp.array([0.1, 0.1, 0.1])
+    nrm = jnp.array([0.0, 0.0, 1.0])
+    try:
+        out = jax.eval_shape(lambda: contact_mod.detect(ka, kb, z3, q, nrm if ka == "plane" else size,
+                                                        z3, q, nrm if kb == "plane" else size))
+    except (NotImplementedError, KeyError, ValueError) as exc:
+        raise ModelError(f"contact between {ka} and {kb} is not supported: {exc}",
+                         hint="change one shape or remove the pair") from exc
+    return int(out.dist.shape[0])

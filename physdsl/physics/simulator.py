@@ -1,0 +1,112 @@
+"""Simulator: a Scene compiled to a pure, jitted ``simulate(values) -> Rollout``.
+
+The static Model is built once; each call evaluates the params from ``values`` inside the
+traced function, scans ``step`` over the recorded times (``jax.checkpoint`` on each step so
+reverse-mode memory stays O(T) states), and reads body and joint observables from the states.
+"""
+from __future__ import annotations
+
+import warnings
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..scene import Scene
+from .integrate import State, step
+from .kinematics import forward_kinematics
+from .model import Model, build_model
+from .params import evaluate_params
+
+
+class Rollout(NamedTuple):
+    t: jnp.ndarray  # (T,)
+    q: jnp.ndarray  # (T, nq)
+    v: jnp.ndarray  # (T, nv)
+    body_pos: jnp.ndarray  # (T, B, 3) body frame origins (= COM for primitives)
+    body_quat: jnp.ndarray  # (T, B, 4) (w, x, y, z) body -> world
+    body_vel: jnp.ndarray  # (T, B, 3) world linear velocity of the origin
+    body_angvel: jnp.ndarray  # (T, B, 3) world angular velocity
+    joint_pos: jnp.ndarray  # (T, J) hinge angle / slider displacement, 0 for other kinds
+    joint_vel: jnp.ndarray  # (T, J)
+    contact_force: jnp.ndarray  # (T, C) normal force per candidate contact (0 when apart)
+
+
+def observe(model: Model, prm: dict, q, v):
+    """Body poses/velocities and scene-joint coordinates at one state."""
+    kin = forward_kinematics(model, prm, q, v)
+    w = kin.vel[:, :3]
+    lin = kin.vel[:, 3:] + jnp.cross(w, kin.pos)
+    jp, jv = [], []
+    for name_idx in range(len(model.joint_names)):
+        tj = next((j for j in model.joints if j.scene_joint == name_idx), None)
+        if tj is not None and tj.kind in ("hinge", "slider"):
+            jp.append(q[tj.qadr])
+            jv.append(v[tj.vadr])
+        else:
+            jp.append(jnp.zeros((), q.dtype))
+            jv.append(jnp.zeros((), q.dtype))
+    stack = lambda xs: jnp.stack(xs) if xs else jnp.zeros(0, q.dtype)  # noqa: E731
+    return kin.pos, kin.quat, lin, w, stack(jp), stack(jv)
+
+
+class Simulator:
+    """Compiled simulation of one Scene; ``simulate`` is pure in ``values`` and jit/vmap/grad-able."""
+
+    def __init__(self, scene: Scene, model: Model):
+        self.scene = scene
+        self.model = model
+        self.body_names = model.body_names
+        self.joint_names = model.joint_names
+        n = model.nsteps
+        self.times = np.arange(n + 1) * model.dt
+        self.integrator = model.integrator
+        if model.integrator == "rk4" and model.ncon:
+            self.integrator = "semi_implicit_euler"
+            warnings.warn(f"scene '{scene.name}' has contacts: RK4 falls back to semi-implicit Euler",
+                          stacklevel=3)
+        self.trace_count = 0
+        self._jit = jax.jit(self._simulate)
+
+    def params(self, values) -> dict:
+        """The numeric params pytree for ``values`` (masses, inertia, poses, effects, q0, v0)."""
+        return evaluate_params(self.scene, self.model, values)
+
+    def _simulate(self, values) -> Rollout:
+        self.trace_count += 1
+        model = self.model
+        prm = evaluate_params(self.scene, model, values)
+        dtype = prm["ref_pos"].dtype
+        C = model.ncon
+        s0 = State(prm["q0"].astype(dtype), prm["v0"].astype(dtype), jnp.zeros(C, dtype),
+                   jnp.zeros((C, 3), dtype))
+        h = model.dt / model.substeps
+        ns = model.substeps
+
+        def substep(state, k):
+            return step(model, prm, state, k * h, h), None
+
+        @jax.checkpoint
+        def record(state, i):
+            if ns == 1:
+                state = step(model, prm, state, i * h, h)
+            else:
+                state, _ = jax.lax.scan(substep, state, i * ns + jnp.arange(ns))
+            return state, state
+
+        _, traj = jax.lax.scan(record, s0, jnp.arange(model.nsteps))
+        traj = jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a[None], b]), s0, traj)
+        pos, quat, lin, ang, jp, jv = jax.vmap(lambda q, v: observe(model, prm, q, v))(traj.q, traj.v)
+        t = jnp.arange(model.nsteps + 1, dtype=dtype) * model.dt
+        return Rollout(t, traj.q, traj.v, pos, quat, lin, ang, jp, jv, traj.contact_force)
+
+    def simulate(self, values) -> Rollout:
+        """Roll the scene out from t = 0 to the last recorded time for the unknowns' ``values``."""
+        values = {k: jnp.asarray(v) for k, v in dict(values).items()}
+        return self._jit(values)
+
+
+def build_simulator(scene: Scene) -> Simulator:
+    """Compile ``scene`` into a Simulator; raises ModelError for unsupported structure."""
+    return Simulator(scene, build_model(scene))
