@@ -1,0 +1,32 @@
+"""``physdsl export``: write a posterior as a proto-program (a .phys file with fitted priors)."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("export")
+    def export_cmd(
+        scene: Path = typer.Argument(..., help="The .phys scene the posterior was fitted to."),
+        posterior: Path = typer.Option(..., "--posterior", help="Run folder of `physdsl infer` (posterior.nc, run.json)."),
+        out: Path = typer.Option(..., "-o", "--output", help="The proto-program to write (.phys)."),
+        free: Optional[List[str]] = typer.Option(None, "--free", help="Unknown that keeps its original prior (repeatable)."),
+        drop: Optional[List[str]] = typer.Option(None, "--drop", help="Body, effect@target or target.quantity to remove with what depends on it (repeatable)."),
+        widen: float = typer.Option(1.0, "--widen", help="Multiply every fitted scale (unconstrained space) by this factor."),
+        observe: bool = typer.Option(True, "--observe/--no-observe", help="Keep observe blocks, or write a pure generator."),
+        force: bool = typer.Option(False, "--force", help="Overwrite an existing output file."),
+    ) -> None:
+        """Export a posterior as a scene program whose priors are the fitted posterior."""
+        from ..export import export
+        from ..infer.output import load_run
+        from ..io import refuse_overwrite, write_text
+
+        refuse_overwrite(out, force)
+        idata, run = load_run(posterior)
+        text = export(scene, idata, free=tuple(free or ()), drop=tuple(drop or ()), widen=widen,
+                      observe=observe, out_path=out, run=run)
+        write_text(out, text)
+        typer.echo(f"wrote {out}")
