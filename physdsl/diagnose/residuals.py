@@ -91,7 +91,7 @@ def validate(fit: ObservableFit) -> tuple[np.ndarray, np.ndarray, np.ndarray, np
     return times, measured, mask & np.isfinite(measured), predicted, noise
 
 
-def residuals(fit: ObservableFit, *, band_level: float = 0.95, max_draws: int = 1000,
+def residuals(fit: ObservableFit, *, band_level: float = 0.95, max_draws: int = 400,
               seed: int = 0) -> Residuals:
     """Standardised residuals and predictive band of one observable (deterministic: fixed seed)."""
     times, measured, valid, predicted, noise = validate(fit)
