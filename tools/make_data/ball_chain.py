@@ -10,7 +10,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from common import EXAMPLES, add_noise, mjcf, rollout, write_positions, write_truth
+from mjgen import EXAMPLES, add_noise, mjcf, rollout, write_positions, write_truth
 
 NAME = "ball_chain"
 LINKS = ("link1", "link2", "link3")

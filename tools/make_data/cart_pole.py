@@ -15,7 +15,7 @@ import sys
 import mujoco
 import numpy as np
 
-from common import EXAMPLES, mjcf, rollout, write_angles, write_truth
+from mjgen import EXAMPLES, mjcf, rollout, write_angles, write_truth
 
 CONTROL_RATE_HZ = 50.0
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from common import EXAMPLES, add_noise, mjcf, rollout, write_angles, write_positions, write_truth
+from mjgen import EXAMPLES, add_noise, mjcf, rollout, write_angles, write_positions, write_truth
 
 NAME = "double_pendulum"
 TRUTH = {
