@@ -236,14 +236,15 @@ class AfterEvent:
 
 def after_event(times: np.ndarray, r: np.ndarray, events: tuple[float, ...],
                 guard: int = 2, alpha: float = 0.01) -> AfterEvent | None:
-    """The earliest event before which the residual is noise-like and after which it is not.
+    """The contact where the misfit starts: the latest event before which the residual is
+    noise-like and after which it is not (an earlier event has the misfit in its "after" too).
 
     ``guard`` samples just before the event are left out, so a contact the model places slightly
     late does not count against "noise-like before".
     """
     ok = np.isfinite(r)
     t, v = times[ok], r[ok]
-    for e in sorted(events):
+    for e in sorted(events, reverse=True):
         before = np.flatnonzero(t < e)
         after = v[t >= e]
         before = v[before[: max(0, before.size - guard)]]
