@@ -75,7 +75,8 @@ def _eval_ast(node, env: Mapping[str, tuple[np.ndarray, object]]):
     if isinstance(node, A.Vector):
         parts = [_eval_ast(i, env) for i in node.items]
         dims = [d for _, d in parts if not d.dimensionless] or [parts[0][1]]
-        return np.stack([np.asarray(v, dtype=float) for v, _ in parts]), dims[0]
+        items = np.broadcast_arrays(*[np.asarray(v, dtype=float) for v, _ in parts])
+        return np.stack(items, axis=-1), dims[0]  # draws first: (n, D) or (D,)
     if isinstance(node, A.BinOp):
         (a, da), (b, db) = _eval_ast(node.left, env), _eval_ast(node.right, env)
         if node.op in "+-":
@@ -149,12 +150,12 @@ def derived_fields(module) -> list[tuple[str, object]]:
 def _param_env(module, values: Mapping[str, np.ndarray], units: Mapping[str, str]):
     """SI values and dimensions of every param computable from the drawn ``values``."""
     from .syntax import ast as A
-    from .syntax.units import parse_unit
+    from .syntax.units import DIMLESS, parse_unit
 
     env = {}
     for name, v in values.items():
-        env[name] = (np.asarray(v, dtype=float), parse_unit(units.get(name, "1") or "1")[1]
-                     if units.get(name, "1") != "1" else parse_unit("m/m")[1])
+        unit = units.get(name, "1")
+        env[name] = (np.asarray(v, dtype=float), DIMLESS if unit in ("", "1") else parse_unit(unit)[1])
     pending = [i for i in module.scene.items if isinstance(i, A.Param) and not isinstance(i.value, A.Dist)]
     for _ in range(len(pending) + 1):  # params may refer to later ones
         rest = []
@@ -183,33 +184,39 @@ def literal(value, unit: str) -> str:
 # Writing one scene: concrete text, trajectories.
 
 
-def concrete_text(module, values: Mapping[str, np.ndarray], units: Mapping[str, str],
-                  derived: Sequence[tuple[str, object]]) -> tuple[str, dict[str, np.ndarray]]:
-    """The program with every unknown and every derived field replaced by its value (a
-    literal with SI units); returns the text and the parameter values it wrote."""
-    from . import syntax
-    from .export import _snippet, set_unknown
-
-    env = _param_env(module, values, units)
-    params: dict[str, np.ndarray] = {}
-    for name, v in values.items():
-        if Z_NAME.match(name):
-            continue
-        module = set_unknown(module, name, _snippet(f"x: {literal(v, units.get(name, '1'))}"))
-        params[name] = np.asarray(v, dtype=float)
-    for name, expr in derived:
+def parameter_values(module, draws: Mapping[str, np.ndarray], units: Mapping[str, str]):
+    """Every parameter of the program per draw: the drawn unknowns (without ``proto_zK``) and
+    the fields written as expressions of ``proto_zK``; name -> ((n, *shape) SI, unit)."""
+    env = _param_env(module, draws, units)
+    out = {}
+    for name, v in draws.items():
+        if not Z_NAME.match(name):
+            out[name] = (np.asarray(v, dtype=float), units.get(name, "1"))
+    for name, expr in derived_fields(module):
         value, dim = _eval_ast(expr, env)
-        unit = dim.si_text()
-        module = set_unknown(module, name, _snippet(f"x: {literal(value, unit)}"))
-        params[name] = np.asarray(value, dtype=float)
-    from .syntax import ast as A
+        n = len(next(iter(draws.values())))
+        value = np.asarray(value, dtype=float)
+        out[name] = (np.broadcast_to(value, (n, *value.shape[1:])) if value.ndim else
+                     np.full(n, float(value)), dim.si_text())
+    return out
+
+
+def concrete_text(module, values: Mapping[str, tuple[np.ndarray, str]]) -> str:
+    """The program with every unknown and every field written as an expression of the
+    standard-normal params replaced by its value ``{name: (value, unit)}`` (literal, SI)."""
     import dataclasses
 
+    from . import syntax
+    from .export import _snippet, set_unknown
+    from .syntax import ast as A
+
+    for name, (v, unit) in values.items():
+        module = set_unknown(module, name, _snippet(f"x: {literal(v, unit)}"))
     decl = module.scene
     items = [i for i in decl.items if not (isinstance(i, A.Param) and Z_NAME.match(i.name))]
     new_decl = dataclasses.replace(decl, items=tuple(items))
     module = dataclasses.replace(module, items=tuple(new_decl if i is decl else i for i in module.items))
-    return syntax.format_source(syntax.print_module(module)), params
+    return syntax.format_source(syntax.print_module(module))
 
 
 def _stride(times: np.ndarray) -> int:
@@ -287,30 +294,27 @@ def sample(path: str | Path, n: int, seed: int = 0, outdir: str | Path = "sample
     model = compile_scene(scene)
     draws = model.sample_prior(jax.random.PRNGKey(seed), n)
     units = {u.name: u.unit for u in scene.unknowns}
-    derived = derived_fields(module)
+    params = parameter_values(module, draws, units)
     module = _for_scene_folder(module, path.parent, outdir, scene.duration)
     sim = model.simulator
     moving = [not b.fixed and (b.shape is None or b.shape.kind != "plane") for b in
               (scene.body(name) for name in sim.body_names)]
     kinds = [scene.joint(name).kind for name in sim.joint_names]
-    scenes, rows, names = [], [], None
+    scenes = []
     for i in range(n):
-        values = {k: v[i] for k, v in draws.items()}
         folder = outdir / f"scene-{i + 1:04d}"
-        text, params = concrete_text(module, values, units, derived)
+        text = concrete_text(module, {k: (v[i], u) for k, (v, u) in params.items()})
         io.write_text(folder / "scene.phys", text)
         if simulate:
-            rollout = model.simulate(values)
+            rollout = model.simulate({k: v[i] for k, v in draws.items()})
             io.write_text(folder / "trajectory.csv", trajectory_csv(rollout, sim.body_names, moving))
             joints = joints_csv(rollout, sim.joint_names, kinds)
             if joints is not None:
                 io.write_text(folder / "joints.csv", joints)
-        names = names or columns(params)
-        rows.append(np.concatenate([np.reshape(v, -1) for v in params.values()]) if params
-                    else np.zeros(0))
         scenes.append(folder / "scene.phys")
-    names = names or []
-    table = np.asarray(rows, dtype=float).reshape(n, len(names))
+    names = columns({k: v[0] for k, (v, _) in params.items()})
+    table = (np.concatenate([v.reshape(n, -1) for v, _ in params.values()], axis=1)
+             if params else np.zeros((n, 0)))
     buf = _io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(["scene", *names])
