@@ -911,7 +911,7 @@ def export(scene_path: str | Path, idata, *, free: Sequence[str] = (), drop: Seq
                          hint="unknowns: " + ", ".join(sorted(names)))
     module = syntax.parse(source, str(scene_path))
     module = drop_parts(module, drop, observe, duration=scene.duration, source=source)
-    reduced = syntax.loads(syntax.print_module(module), filename=str(scene_path),
+    reduced = syntax.loads(print_module(module, source), filename=str(scene_path),
                            base_dir=scene_path.parent)
     targets = [u for u in reduced.unknowns if u.name in posterior_vars and u.name not in free]
     draws = posterior_draws(idata, [u.name for u in targets])
@@ -942,10 +942,18 @@ def export(scene_path: str | Path, idata, *, free: Sequence[str] = (), drop: Seq
     header = _header(scene_path, run, fit, fit_quality(idata, [u.name for u in targets]),
                      len(next(iter(draws.values()))) if draws else 0, free, drop, widen,
                      observe, z_names)
-    text = syntax.format_source("\n".join(header) + "\n\n" + syntax.print_module(module))
+    text = syntax.format_source("\n".join(header) + "\n\n" + print_module(module, source))
     syntax.loads(text, filename=str(out_path or scene_path), base_dir=out_dir)  # must resolve
     del A
     return text
+
+
+def print_module(module, source: str) -> str:
+    """Text of an (edited) module through the language's printer; comments of ``source``
+    stay where they were."""
+    from .syntax.printer import format_module
+
+    return format_module(module, source)
 
 
 def _snippet(text: str):

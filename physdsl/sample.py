@@ -201,13 +201,13 @@ def parameter_values(module, draws: Mapping[str, np.ndarray], units: Mapping[str
     return out
 
 
-def concrete_text(module, values: Mapping[str, tuple[np.ndarray, str]]) -> str:
+def concrete_text(module, values: Mapping[str, tuple[np.ndarray, str]], source: str = "") -> str:
     """The program with every unknown and every field written as an expression of the
     standard-normal params replaced by its value ``{name: (value, unit)}`` (literal, SI)."""
     import dataclasses
 
     from . import syntax
-    from .export import _snippet, set_unknown
+    from .export import _snippet, print_module, set_unknown
     from .syntax import ast as A
 
     for name, (v, unit) in values.items():
@@ -216,7 +216,7 @@ def concrete_text(module, values: Mapping[str, tuple[np.ndarray, str]]) -> str:
     items = [i for i in decl.items if not (isinstance(i, A.Param) and Z_NAME.match(i.name))]
     new_decl = dataclasses.replace(decl, items=tuple(items))
     module = dataclasses.replace(module, items=tuple(new_decl if i is decl else i for i in module.items))
-    return syntax.format_source(syntax.print_module(module))
+    return syntax.format_source(print_module(module, source))
 
 
 def _stride(times: np.ndarray) -> int:
@@ -303,7 +303,7 @@ def sample(path: str | Path, n: int, seed: int = 0, outdir: str | Path = "sample
     scenes = []
     for i in range(n):
         folder = outdir / f"scene-{i + 1:04d}"
-        text = concrete_text(module, {k: (v[i], u) for k, (v, u) in params.items()})
+        text = concrete_text(module, {k: (v[i], u) for k, (v, u) in params.items()}, source)
         io.write_text(folder / "scene.phys", text)
         if simulate:
             rollout = model.simulate({k: v[i] for k, v in draws.items()})
