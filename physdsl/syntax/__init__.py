@@ -1,0 +1,79 @@
+"""The .phys language: parse text to an AST, resolve it to a checked Scene, print it back.
+
+``parse`` -> ``ast.Module``; ``load``/``loads`` -> ``physdsl.scene.Scene``; ``format_source``
+-> canonical text; ``unknowns_table`` -> the unknowns as a text table.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..errors import PhysError, PhysImportError
+from ..scene import Scene
+from . import ast
+from .parser import parse
+from .printer import format_module
+from .resolve import resolve
+
+__all__ = ["ast", "parse", "load", "loads", "format_source", "unknowns_table", "unknowns_rows"]
+
+
+def loads(text: str, filename: str = "<string>", base_dir: str | Path | None = None) -> Scene:
+    """The checked Scene of .phys ``text``; data files and imports are found in ``base_dir``."""
+    module = parse(text, filename)
+    base = Path(base_dir) if base_dir is not None else Path(".")
+    path = Path(filename) if filename and not filename.startswith("<") else None
+    return resolve(module, text, base, path)
+
+
+def load(path: str | Path) -> Scene:
+    """Read, parse and resolve a .phys file (data paths relative to the file)."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise PhysImportError(f"file not found: {p}", hint="check the path") from None
+    except (OSError, UnicodeDecodeError) as ex:
+        raise PhysImportError(f"cannot read {p}: {ex}") from None
+    return loads(text, str(path), p.parent)
+
+
+def format_source(text: str, filename: str = "<string>") -> str:
+    """Canonical text of a .phys source (comments kept)."""
+    return format_module(parse(text, filename), text)
+
+
+def unknowns_rows(scene: Scene) -> list[tuple[str, str, str, str, str, str]]:
+    """(name, prior, support, shape, unit, used in) for each unknown."""
+    from .printer import format_prior
+    rows = []
+    for u in scene.unknowns:
+        support = _support(u)
+        shape = "scalar" if u.shape == () else "x".join(map(str, u.shape))
+        rows.append((u.name, format_prior(u.prior), support, shape, u.unit, ", ".join(u.used_in)))
+    return rows
+
+
+def _support(u) -> str:
+    from . import dists
+    import numpy as np
+    from .. import expr as E
+    obj = dists.find(u.prior.dist)
+    if obj is None:
+        return "?"
+    try:
+        args = [np.asarray(E.evaluate(a, {}) if E.is_constant(a) else 1.0) for a in u.prior.args]
+        kwargs = {k: np.asarray(E.evaluate(v, {}) if E.is_constant(v) else 1.0)
+                  for k, v in u.prior.kwargs}
+    except Exception:  # noqa: BLE001
+        return "?"
+    return ("discrete, " if u.discrete else "") + dists.draw_info(obj, args, kwargs)[2]
+
+
+def unknowns_table(scene: Scene) -> str:
+    """The unknowns as an aligned plain-text table."""
+    head = ("name", "prior", "support", "shape", "unit", "used in")
+    rows = [head] + unknowns_rows(scene)
+    widths = [max(len(r[i]) for r in rows) for i in range(len(head))]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows]
+    lines.insert(1, "  ".join("-" * w for w in widths))
+    return "\n".join(lines)

@@ -1,0 +1,128 @@
+"""Import expansion and the effect library: stdlib effect declarations plus a file's imports.
+
+Imports resolve against ``stdlib/`` first, then relative to the importing file; a missing or
+cyclic import is a PhysImportError naming the chain. Every stdlib effect is known to every
+scene; importing a stdlib file again is harmless.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+
+from ..errors import PhysError, PhysImportError, PhysNameError, Span
+from . import ast
+from .parser import parse
+
+STDLIB_DIR = Path(__file__).resolve().parent.parent.parent / "stdlib"
+
+
+@dataclass
+class Loaded:
+    """Everything imported: effect declarations and top-level params, with their files."""
+
+    effect_types: dict[str, tuple[ast.EffectType, str]] = field(default_factory=dict)
+    params: dict[str, tuple[ast.Param, str]] = field(default_factory=dict)
+    seen: set[Path] = field(default_factory=set)
+    sources: dict[str, str] = field(default_factory=dict)  # file name -> text, for errors
+
+
+def find_import(path: str, importer_dir: Path | None) -> Path | None:
+    """stdlib first, then relative to the importing file."""
+    for base in (STDLIB_DIR, importer_dir):
+        if base is None:
+            continue
+        cand = (base / path)
+        if cand.is_file():
+            return cand.resolve()
+    return None
+
+
+def _read(path: Path) -> str:
+    return path.read_text(encoding="utf-8")
+
+
+def expand(module: ast.Module, module_dir: Path | None, loaded: Loaded, chain: tuple[Path, ...],
+           errors: list[PhysError], source: str) -> None:
+    """Load ``module``'s imports (recursively) and declarations into ``loaded``."""
+    for item in module.items:
+        if isinstance(item, ast.Import):
+            target = find_import(item.path, module_dir)
+            if target is None:
+                where = f"stdlib/ or {module_dir}" if module_dir else "stdlib/"
+                errors.append(PhysImportError(
+                    f"cannot find import \"{item.path}\"", item.span,
+                    hint=f"looked in {where}; stdlib effects need no import", source=source))
+                continue
+            if target in chain:
+                names = " -> ".join(p.name for p in chain + (target,))
+                errors.append(PhysImportError(f"cyclic import: {names}", item.span,
+                                              hint="remove one of these imports", source=source))
+                continue
+            if target in loaded.seen:
+                continue
+            loaded.seen.add(target)
+            try:
+                text = _read(target)
+                sub = parse(text, str(target))
+            except PhysError as ex:
+                errors.append(ex)
+                continue
+            except OSError as ex:
+                errors.append(PhysImportError(f"cannot read import \"{item.path}\": {ex.strerror}",
+                                              item.span, source=source))
+                continue
+            loaded.sources[str(target)] = text
+            if sub.scene is not None:
+                errors.append(PhysImportError(
+                    f"imported file \"{item.path}\" holds a scene", item.span,
+                    hint="an imported file may only hold effect_type, param and import lines",
+                    source=source))
+                continue
+            expand(sub, target.parent, loaded, chain + (target,), errors, text)
+        elif isinstance(item, ast.EffectType):
+            old = loaded.effect_types.get(item.name)
+            if old is not None and old[0].span != item.span:
+                errors.append(PhysNameError(
+                    f"effect '{item.name}' is declared twice (first at {old[0].span})",
+                    item.span, source=source))
+                continue
+            loaded.effect_types[item.name] = (item, source)
+        elif isinstance(item, ast.Param):
+            old = loaded.params.get(item.name)
+            if old is not None and old[0].span != item.span:
+                errors.append(PhysNameError(
+                    f"param '{item.name}' is defined twice (first at {old[0].span})", item.span,
+                    source=source))
+                continue
+            loaded.params[item.name] = (item, source)
+
+
+@lru_cache(maxsize=4)
+def _stdlib_cached(stamp: tuple) -> Loaded:
+    loaded = Loaded()
+    errors: list[PhysError] = []
+    for f in sorted((STDLIB_DIR / "effects").glob("*.phys")):
+        root = ast.Module((ast.Import(f"effects/{f.name}", None),), (), "<stdlib>")
+        expand(root, STDLIB_DIR, loaded, (), errors, "")
+    if errors:
+        from ..errors import PhysErrors
+        raise errors[0] if len(errors) == 1 else PhysErrors(errors)
+    return loaded
+
+
+def stdlib() -> Loaded:
+    """The standard library's effects (cached; reloaded when a stdlib file changes)."""
+    files = sorted((STDLIB_DIR / "effects").glob("*.phys"))
+    stamp = tuple((str(f), f.stat().st_mtime_ns) for f in files)
+    return _stdlib_cached(stamp)
+
+
+def load_library(module: ast.Module, module_dir: Path | None, source: str,
+                 errors: list[PhysError], self_path: Path | None = None) -> Loaded:
+    """The stdlib plus ``module``'s own imports and declarations."""
+    base = stdlib()
+    loaded = Loaded(dict(base.effect_types), dict(base.params), set(base.seen), dict(base.sources))
+    chain = (self_path.resolve(),) if self_path is not None else ()
+    expand(module, module_dir, loaded, chain, errors, source)
+    return loaded
