@@ -264,3 +264,50 @@ def test_bouncing_ball_restitution_from_apex_heights():
     expected = truth["parameters"]["restitution@floor,ball.coefficient"]
     assert np.mean(e) == pytest.approx(expected, abs=0.01)
     assert max(e) < 0.97  # an elastic bounce would return to the same height
+
+
+def _resim_corpus(name, before_step_factory=None, init=None):
+    """Re-simulate a corpus example's stored MJCF; RMS/sigma per tracked body."""
+    folder = EXAMPLES / name
+    truth = _load(folder)
+    model = mujoco.MjModel.from_xml_string(truth["simulator"]["mjcf_with_hidden_effect"])
+    data = mujoco.MjData(model)
+    if init is not None:
+        init(data, truth["physical_parameters"])
+    before = before_step_factory(model, truth) if before_step_factory else None
+    tdata, pos = read_long(folder / "trajectory.csv", "body", ("x", "y", "z"))
+    sites = list(pos)
+    t, sim = rollout(model, data, float(tdata[-1]), lambda d: {s: d.site(s).xpos.copy() for s in sites},
+                     before_step=before, rate_hz=truth["noise"]["rate_hz"])
+    return truth, {s: _rms_over_sigma(pos[s], sim[s], truth["noise"]["sigma_position_m"]) for s in sites}
+
+
+@pytest.mark.slow
+def test_bouncing_ball_matches_its_mujoco_model():
+    _, ratios = _resim_corpus("bouncing_ball")
+    assert 0.85 < ratios["ball"] < 1.15
+
+
+@pytest.mark.slow
+def test_billiards_matches_its_mujoco_model():
+    def factory(model, truth):
+        p = truth["physical_parameters"]
+        mu_r, g = p["table_rolling_resistance_m"], 9.81
+        masses = {"cue": p["cue_mass_kg"], "object": p["object_mass_kg"]}
+        ids = {b: model.body(b).id for b in masses}
+
+        def before(d):  # rolling resistance as in the corpus: fades below |w| = 0.5 rad/s
+            for b, m in masses.items():
+                w = d.body(b).cvel[:3].copy()
+                w[2] = 0.0
+                n = float(np.linalg.norm(w))
+                scale = min(n / 0.5, 1.0) / n if n > 0 else 0.0
+                d.xfrc_applied[ids[b], 3:6] = -mu_r * m * g * w * scale
+        return before
+
+    def init(d, p):  # the cue ball starts rolling (body frame = world frame at t = 0)
+        d.qvel[0:3] = p["cue_initial_velocity_m_s"]
+        d.qvel[3:6] = p["cue_initial_angular_velocity_rad_s"]
+
+    _, ratios = _resim_corpus("billiards", factory, init)
+    assert all(0.85 < r < 1.15 for r in ratios.values()), ratios
