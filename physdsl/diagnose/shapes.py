@@ -59,9 +59,11 @@ class ShapeScore:
     """How well one shape explains the residual: r is the cosine between residual and regressor."""
 
     shape: str
-    r: float        # signed (uncentred) correlation of residual and regressor, noise-weighted
-    coef: float     # least-squares factor: error ~ coef * regressor (error in the observable's unit)
-    p_value: float  # F test of the one-regressor fit against no fit
+    r: float        # signed (uncentred) correlation of residual and fit, noise-weighted; the sign
+                    # is that of coef
+    coef: float     # least-squares factor of the shape's regressor: error ~ coef * regressor
+                    # (+ companion term for decay and phase), error in the observable's unit
+    p_value: float  # F test of the fit against no fit
     ss: float       # sum of squared standardised residuals the shape was fitted to
 
 
@@ -114,7 +116,8 @@ def oscillates(mean: np.ndarray) -> bool:
 
 def regressors(times: np.ndarray, mean: np.ndarray, velocity: np.ndarray,
                speed: np.ndarray | None) -> dict[str, np.ndarray]:
-    """The candidate misfit shapes as regressors over the given samples (time from the first)."""
+    """The candidate misfit shapes as regressors over the given samples (time from the first):
+    (n,) for one regressor, (n, 2) for a shape fitted with a companion term (shape last)."""
     t = times - times[0]
     out = {
         "offset": np.ones_like(times),
@@ -129,8 +132,11 @@ def regressors(times: np.ndarray, mean: np.ndarray, velocity: np.ndarray,
         out["drag_linear"] = double_integral(times, velocity)
         out["drag_quadratic"] = double_integral(times, speed * velocity)
     if oscillates(mean):
-        out["decay"] = t * (mean - np.mean(mean))
-        out["phase"] = t * velocity
+        # with the time-independent part alongside, so an amplitude (phase) error that a fit
+        # has balanced around mid-record still shows as a decay (drift); the last column is the shape
+        swing = mean - np.mean(mean)
+        out["decay"] = np.stack([swing, t * swing], axis=1)
+        out["phase"] = np.stack([velocity, t * velocity], axis=1)
     return out
 
 
@@ -155,19 +161,22 @@ def shape_scores(times: np.ndarray, error: np.ndarray, noise: np.ndarray, mean: 
     rr = float(rw @ rw)
     n = rw.size
     out = []
+    if rr <= 0:
+        return []
     for name in SHAPES:
         if name not in regs:
             continue
-        xw = regs[name] * w
-        xx = float(xw @ xw)
-        if xx <= 1e-300 * max(1.0, rr) or rr <= 0:
+        x = regs[name].reshape(n, -1) * w[:, None]
+        k = x.shape[1]
+        if np.sum(x[:, -1] ** 2) <= 1e-300 * max(1.0, rr) or n <= k + 1:
             continue
-        xr = float(xw @ rw)
-        cos = xr / np.sqrt(xx * rr)
-        explained = xr * xr / xx
+        coef, *_ = np.linalg.lstsq(x, rw, rcond=None)
+        explained = min(float(np.sum((x @ coef) ** 2)), rr)
+        cos = np.sign(coef[-1]) * np.sqrt(explained / rr)
         rest = max(rr - explained, 1e-300)
-        f = explained / (rest / (n - 1))
-        out.append(ShapeScore(name, float(cos), xr / xx, float(stats.f.sf(f, 1, n - 1)), rr))
+        f = (explained / k) / (rest / (n - k))
+        out.append(ShapeScore(name, float(cos), float(coef[-1]),
+                              float(stats.f.sf(f, k, n - k)), rr))
     return out
 
 

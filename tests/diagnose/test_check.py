@@ -132,6 +132,16 @@ def test_damped_measurement_decays_faster_than_undamped_model():
     assert env is not None and abs(env.rate + 0.2) < 0.04  # measured extra decay rate ~ gamma
 
 
+def test_decay_found_when_a_fit_balanced_the_amplitude_mid_record():
+    t = np.linspace(0.0, 6.0, 600)
+    gamma = 0.1
+    pred = swing(t, amp=0.5 * np.exp(-gamma * 3.0))  # undamped model matching at t = 3 s
+    rep = one_angle(swing(t, gamma=gamma), pred, t, np.random.default_rng(9))
+    f = only_flag(rep, "angle")
+    assert f.shape == "decay" and "decays faster than predicted" in f.detail
+    assert abs(rep.observables[0].axes[0].envelope.rate + gamma) < 0.02
+
+
 def test_phase_drift_is_phase():
     t = np.linspace(0.0, 4.0, 400)
     f = only_flag(one_angle(swing(t, omega=2 * np.pi * 1.01), swing(t), t,
