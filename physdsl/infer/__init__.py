@@ -1,0 +1,2 @@
+"""Inference: backends behind one interface, run with checkpoints into arviz InferenceData."""
+from .base import BACKENDS, Backend, Settings, get_backend, register_backend  # noqa: F401

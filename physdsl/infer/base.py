@@ -1,0 +1,100 @@
+"""The one shape every inference backend takes, and the registry of backends by name.
+
+A backend works on a log density over a flat unconstrained vector (from numpyro's
+``initialize_model``), blackjax-style: ``warmup`` tunes and returns per-chain states and
+parameters; ``sample`` advances the chains by ``n`` draws. Both are pure functions of their
+inputs (keys included), so running in blocks and resuming from a checkpoint gives the same
+draws as one uninterrupted run. A new backend is one module with ``@register_backend``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable, NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from ..errors import UsageError
+
+BACKENDS: dict[str, "Backend"] = {}
+
+
+@dataclass(frozen=True)
+class Settings:
+    """What a user sets for a run; backends read the fields that concern them."""
+
+    chains: int = 4
+    warmup: int = 500
+    samples: int = 500
+    seed: int = 0
+    target_accept: float = 0.8
+    max_tree_depth: int = 8
+    integration_steps: int = 16
+    block: int = 100  # draws between checkpoints
+    init_steps: int = 300  # optimisation steps from each prior draw before warmup
+
+
+class Problem(NamedTuple):
+    """A log density over flat unconstrained vectors and how to map draws back."""
+
+    logdensity: Callable[[jax.Array], jax.Array]  # flat -> log p (finite or -inf)
+    to_constrained: Callable[[jax.Array], dict]  # flat -> {site: constrained value}
+    dim: int
+    model: Any  # the compiled Model (for backends that need the program itself)
+
+
+class Backend:
+    """Base class: a name, whether it needs gradients, and the two pure stages."""
+
+    name: str = ""
+    uses_gradient: bool = True
+
+    def warmup(self, problem: Problem, positions: jax.Array, key, settings: Settings):
+        """Tune on ``positions`` (chains, dim); return (states, params, info dict)."""
+        raise NotImplementedError
+
+    def sample(self, problem: Problem, states, params, key, n: int, settings: Settings):
+        """Advance chains by ``n``; return (states, draws (chains, n, dim), stats {name: (chains, n)})."""
+        raise NotImplementedError
+
+
+def register_backend(cls):
+    """Class decorator: make a backend available by its ``name``."""
+    BACKENDS[cls.name] = cls()
+    return cls
+
+
+def get_backend(name: str) -> Backend:
+    from . import backends  # noqa: F401 - registers the built-in backends
+
+    if name not in BACKENDS:
+        raise UsageError(f"unknown backend '{name}'",
+                         hint=f"known backends: {', '.join(sorted(BACKENDS))}")
+    return BACKENDS[name]
+
+
+def safe_logdensity(fn):
+    """Wrap a log density so NaN/inf values or gradients become -inf with zero gradient.
+
+    A rollout that blows up for some parameter values then is a rejected proposal, not a
+    crash, and no NaN leaks into the sampler's state through the gradient.
+    """
+
+    @jax.custom_vjp
+    def f(x):
+        return _clean(*jax.value_and_grad(fn)(x))[0]
+
+    def fwd(x):
+        v, g = _clean(*jax.value_and_grad(fn)(x))
+        return v, g
+
+    def bwd(g, ct):
+        return (ct * g,)
+
+    f.defvjp(fwd, bwd)
+    return f
+
+
+def _clean(v, g):
+    ok = jnp.isfinite(v) & jnp.all(jnp.isfinite(g))
+    return jnp.where(ok, v, -jnp.inf), jnp.where(ok, g, 0.0)

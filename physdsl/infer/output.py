@@ -1,0 +1,200 @@
+"""Turn draws into arviz InferenceData, a summary table, warnings in words, and a run folder."""
+from __future__ import annotations
+
+import hashlib
+import json
+import platform
+from pathlib import Path
+
+import arviz as az
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import io
+from ..compile import OBS_PREFIX, PRED_PREFIX
+from ..observe import trajectory
+
+
+def build_inference_data(model, problem, flat: np.ndarray, stats: dict, settings) -> az.InferenceData:
+    """InferenceData with posterior (unknowns), predictive, observed data and pointwise log-lik."""
+    chains, samples, _ = flat.shape
+    to_c = jax.jit(jax.vmap(problem.to_constrained))
+    constrained = to_c(jnp.asarray(flat.reshape(chains * samples, -1)))
+    unknowns = set(model.unknown_names)
+    posterior = {k: np.asarray(v).reshape(chains, samples, *v.shape[1:])
+                 for k, v in constrained.items() if k in unknowns}
+    preds = {k: np.asarray(v).reshape(chains, samples, *v.shape[1:])
+             for k, v in constrained.items() if k.startswith(PRED_PREFIX)}
+    loglik = pointwise_log_likelihood(model, {k: jnp.asarray(v).reshape(chains * samples, *v.shape[2:])
+                                              for k, v in posterior.items()})
+    loglik = {OBS_PREFIX + k: v.reshape(chains, samples, *v.shape[1:]) for k, v in loglik.items()}
+    observed = {OBS_PREFIX + o.obs.name: np.where(o.obs.mask, o.obs.values, np.nan) for o in model.observed}
+    sample_stats = {k: np.asarray(v) for k, v in stats.items()}
+    if "log_density" not in sample_stats:
+        lp = jax.jit(jax.vmap(problem.logdensity))(jnp.asarray(flat.reshape(chains * samples, -1)))
+        sample_stats["lp"] = np.asarray(lp).reshape(chains, samples)
+    dims, coords = _dims(model, posterior)
+    return az.from_dict(posterior=posterior, posterior_predictive=preds, observed_data=observed,
+                        log_likelihood=loglik, sample_stats=sample_stats, dims=dims, coords=coords)
+
+
+def _dims(model, posterior):
+    dims, coords = {}, {}
+    for o in model.observed:
+        tdim = f"{o.obs.name}:time"
+        coords[tdim] = o.obs.times
+        adim = f"{o.obs.name}:axis"
+        coords[adim] = list(o.obs.columns) if len(o.obs.columns) == o.obs.values.shape[1] else \
+            [f"c{i}" for i in range(o.obs.values.shape[1])]
+        dims[OBS_PREFIX + o.obs.name] = [tdim, adim]
+        dims[PRED_PREFIX + o.obs.name] = [tdim, adim]
+    return dims, coords
+
+
+def pointwise_log_likelihood(model, values: dict) -> dict[str, np.ndarray]:
+    """Log-likelihood per draw and measurement time (axes summed): name -> (draws, N)."""
+    def one(vals):
+        pred = model.predict(vals)
+        out = {}
+        for o in model.observed:
+            res = trajectory.residual(o.obs.quantity, pred[o.obs.name], jnp.asarray(o.measured))
+            res = jnp.where(o.mask, res, 0.0)
+            lp = model.noise_distribution(o.obs, vals, jnp.zeros_like(res)).log_prob(res)
+            out[o.obs.name] = jnp.sum(jnp.where(o.mask, lp, 0.0), axis=-1)
+        return out
+    res = jax.jit(jax.vmap(one))(values)
+    return {k: np.asarray(v) for k, v in res.items()}
+
+
+def summary_rows(model, idata) -> list[dict]:
+    """Per scalar component of every unknown: mean, sd, 5%, 95%, ESS bulk/tail, r-hat, unit."""
+    rows = []
+    post = idata.posterior
+    for u in model.unknowns:
+        arr = np.asarray(post[u.name].values)  # (chain, draw, *shape)
+        flat = arr.reshape(arr.shape[0], arr.shape[1], -1)
+        for i in range(flat.shape[2]):
+            x = flat[:, :, i]
+            label = u.name if flat.shape[2] == 1 else f"{u.name}[{i}]"
+            rows.append({
+                "name": label, "unit": u.unit, "mean": float(np.mean(x)), "sd": float(np.std(x)),
+                "q5": float(np.quantile(x, 0.05)), "q95": float(np.quantile(x, 0.95)),
+                "ess_bulk": _safe(lambda: az.ess(x, method="bulk")),
+                "ess_tail": _safe(lambda: az.ess(x, method="tail")),
+                "r_hat": _safe(lambda: az.rhat(x)) if x.shape[0] > 1 else float("nan"),
+            })
+    return rows
+
+
+def _safe(fn) -> float:
+    try:
+        return float(fn())
+    except Exception:  # noqa: BLE001 - a diagnostic that cannot be computed is reported as NaN
+        return float("nan")
+
+
+def warnings_in_words(rows: list[dict], idata, backend: str) -> list[str]:
+    """Problems a user should act on, each with what to try."""
+    out = []
+    bad_rhat = [r for r in rows if np.isfinite(r["r_hat"]) and r["r_hat"] > 1.01]
+    if bad_rhat and backend != "map":
+        worst = max(bad_rhat, key=lambda r: r["r_hat"])
+        out.append(f"r-hat of {worst['name']} is {worst['r_hat']:.3f} > 1.01: the chains disagree. "
+                   "Try more --warmup and --samples, or check for several modes (tighter priors).")
+    low = [r for r in rows if np.isfinite(r["ess_bulk"]) and r["ess_bulk"] < 100]
+    if low and backend != "map":
+        worst = min(low, key=lambda r: r["ess_bulk"])
+        out.append(f"bulk ESS of {worst['name']} is only {worst['ess_bulk']:.0f}: estimates are noisy. "
+                   "Run more --samples or more --chains.")
+    ss = idata.sample_stats
+    if "diverging" in ss:
+        n = int(np.asarray(ss["diverging"].values).sum())
+        if n:
+            out.append(f"{n} divergent transitions: the sampler met regions it cannot integrate. "
+                       "Raise the target acceptance (e.g. 0.95) or give weakly identified unknowns "
+                       "tighter priors.")
+    return out
+
+
+def format_table(rows: list[dict]) -> str:
+    """The summary as aligned text (what the CLI prints)."""
+    head = f"{'unknown':<40} {'mean':>12} {'sd':>10} {'5%':>12} {'95%':>12} {'ess_bulk':>8} {'ess_tail':>8} {'r_hat':>6}  unit"
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        lines.append(f"{r['name']:<40} {r['mean']:>12.5g} {r['sd']:>10.3g} {r['q5']:>12.5g} "
+                     f"{r['q95']:>12.5g} {r['ess_bulk']:>8.0f} {r['ess_tail']:>8.0f} "
+                     f"{r['r_hat']:>6.3f}  {r['unit']}")
+    return "\n".join(lines)
+
+
+def file_sha256(path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def save_run(out: Path, model, idata, backend: str, settings) -> dict[str, Path]:
+    """Write posterior.nc, summary.csv and run.json into ``out`` atomically."""
+    import csv
+    import io as _io
+    from dataclasses import asdict
+
+    paths = {}
+    with io.atomic_path(out / "posterior.nc") as tmp:
+        idata.to_netcdf(str(tmp), engine="h5netcdf") if _has_h5() else idata.to_netcdf(str(tmp))
+    paths["posterior"] = out / "posterior.nc"
+    rows = summary_rows(model, idata)
+    buf = _io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=list(rows[0]) if rows else ["name"])
+    writer.writeheader()
+    writer.writerows(rows)
+    paths["summary"] = io.write_text(out / "summary.csv", buf.getvalue())
+    scene = model.scene
+    data = {}
+    for o in scene.observations:
+        if Path(o.file).exists():
+            data[str(o.file)] = file_sha256(o.file)
+    import jax as _jax
+    import numpyro
+    import blackjax
+    from .. import __version__
+
+    run = {
+        "scene": str(scene.path) if scene.path else None,
+        "scene_sha256": hashlib.sha256(scene.source.encode()).hexdigest(),
+        "data_sha256": data,
+        "backend": backend,
+        "settings": asdict(settings),
+        "seed": settings.seed,
+        "versions": {"physdsl": __version__, "jax": _jax.__version__, "numpyro": numpyro.__version__,
+                     "blackjax": blackjax.__version__, "arviz": az.__version__,
+                     "python": platform.python_version()},
+        "warnings": warnings_in_words(rows, idata, backend),
+    }
+    paths["run"] = io.write_json(out / "run.json", run)
+    return paths
+
+
+def _has_h5() -> bool:
+    try:
+        import h5netcdf  # noqa: F401
+        return True
+    except ImportError:
+        return False
+
+
+def load_run(run_dir) -> tuple[az.InferenceData, dict]:
+    """Read a run folder written by ``save_run``: (InferenceData, run.json contents)."""
+    from ..errors import UsageError
+
+    run_dir = Path(run_dir)
+    post = run_dir / "posterior.nc"
+    if not post.exists():
+        raise UsageError(f"'{run_dir}' holds no posterior.nc",
+                         hint="give the -o folder of a finished `physdsl infer` run")
+    idata = az.from_netcdf(str(post))
+    meta = json.loads((run_dir / "run.json").read_text()) if (run_dir / "run.json").exists() else {}
+    return idata, meta
