@@ -226,6 +226,19 @@ def fit_draws(draws: Mapping[str, np.ndarray], supports: Mapping[str, Support], 
     return ProtoFit(tuple(marginals), tuple(blocks), dict(supports), shapes)
 
 
+def as_block(fit: ProtoFit, name: str, draws: np.ndarray, widen: float = 1.0) -> ProtoFit:
+    """``fit`` with the marginal of ``name`` rewritten as a one-unknown block (same support,
+    normal in the unconstrained space): for params whose unit a distribution cannot carry
+    (``log_normal``/``beta`` arguments take no unit, and a param takes its unit from them)."""
+    support = fit.supports[name]
+    flat = np.asarray(draws, dtype=float).reshape(len(draws), -1)
+    y = support.to_unconstrained(flat if fit.shapes[name] else flat[:, 0]).reshape(len(flat), -1)
+    cov = np.atleast_2d(np.cov(y, rowvar=False)) * widen**2
+    block = Block(tuple((name, i) for i in range(y.shape[1])), y.mean(axis=0), _cholesky(cov))
+    return ProtoFit(tuple(m for m in fit.marginals if m.name != name), fit.blocks + (block,),
+                    fit.supports, fit.shapes)
+
+
 def _groups(comps, cov, threshold) -> list[list[int]]:
     """Connected components of whole unknowns linked by |r| >= threshold (vectors stay whole)."""
     sd = np.sqrt(np.maximum(np.diag(cov), 1e-300))
@@ -896,7 +909,6 @@ def export(scene_path: str | Path, idata, *, free: Sequence[str] = (), drop: Seq
     run.json contents, for the header. The text parses, resolves and is ``fmt``-stable.
     """
     from . import syntax
-    from .syntax import ast as A
 
     scene_path = Path(scene_path)
     source = scene_path.read_text(encoding="utf-8")
@@ -924,6 +936,9 @@ def export(scene_path: str | Path, idata, *, free: Sequence[str] = (), drop: Seq
     supports = {u.name: prior_support(u, means) for u in targets}
     fit = fit_draws(draws, supports, widen=widen)
     units = {u.name: u.unit for u in targets}
+    for m in fit.marginals:
+        if "." not in m.name and units[m.name] not in ("", "1") and m.dist in ("log_normal", "beta"):
+            fit = as_block(fit, m.name, draws[m.name], widen)
     z_prefix = _z_prefix(scene, source)
     n_z = sum(len(b.mean) for b in fit.blocks)
     z_names = [f"{z_prefix}{k + 1}" for k in range(n_z)]
@@ -937,15 +952,14 @@ def export(scene_path: str | Path, idata, *, free: Sequence[str] = (), drop: Seq
         module = set_unknown(module, m.name, _snippet(f"x ~ {marginal_text(m, units[m.name])}"))
     if z_names:
         module = add_params(module, [(z, "normal(0, 1)") for z in z_names])
-    out_dir = Path(out_path).parent if out_path is not None else scene_path.parent
-    module = rebase_paths(module, scene_path.parent, out_dir)
     header = _header(scene_path, run, fit, fit_quality(idata, [u.name for u in targets]),
                      len(next(iter(draws.values()))) if draws else 0, free, drop, widen,
                      observe, z_names)
-    text = syntax.format_source("\n".join(header) + "\n\n" + print_module(module, source))
-    syntax.loads(text, filename=str(out_path or scene_path), base_dir=out_dir)  # must resolve
-    del A
-    return text
+    # the program must resolve (checked where its files are now, before they are rebased)
+    syntax.loads(print_module(module, source), filename=str(scene_path), base_dir=scene_path.parent)
+    out_dir = Path(out_path).parent if out_path is not None else scene_path.parent
+    module = rebase_paths(module, scene_path.parent, out_dir)
+    return syntax.format_source("\n".join(header) + "\n\n" + print_module(module, source))
 
 
 def print_module(module, source: str) -> str:
