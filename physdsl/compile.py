@@ -32,7 +32,11 @@ def distribution_class(name: str):
     camel = "".join(part[:1].upper() + part[1:] for part in name.split("_"))
     cls = getattr(dist, camel, None)
     if cls is None or not isinstance(cls, type) or not issubclass(cls, dist.Distribution):
-        raise PhysTypeError(f"unknown distribution '{name}'")
+        from .syntax.dists import find  # factories: truncated_normal, categorical, ...
+
+        cls = find(name)
+        if cls is None:
+            raise PhysTypeError(f"unknown distribution '{name}'")
     return cls
 
 
