@@ -1,0 +1,20 @@
+"""Contact for the differentiable physics engine.
+
+- ``detect``: fixed-size contact candidates between primitive shapes (``detect.py``);
+- ``solve_lcp_step``: one velocity step with contact and polyhedral Coulomb friction as an LCP,
+  solved by a primal-dual interior-point method and differentiated implicitly (``step.py``,
+  ``lcp.py``);
+- ``compliant_forces``: a smooth penalty spring-damper alternative (``compliant.py``).
+"""
+from .compliant import COMPLIANT_SETTINGS, CompliantSettings, compliant_forces, damping_ratio
+from .detect import PAIRS, SHAPE_CODES, ContactPoints, contact_count, contact_margin, detect
+from .lcp import IP_SETTINGS, IPSettings, lcp_residual, lcp_solve
+from .step import (LCP_SETTINGS, ContactLCP, LCPSettings, build_lcp, normal_target,
+                   restitution_threshold, solve_lcp_step)
+
+__all__ = [
+    "COMPLIANT_SETTINGS", "CompliantSettings", "ContactLCP", "ContactPoints", "IPSettings",
+    "IP_SETTINGS", "LCPSettings", "LCP_SETTINGS", "PAIRS", "SHAPE_CODES", "build_lcp",
+    "compliant_forces", "contact_count", "contact_margin", "damping_ratio", "detect",
+    "lcp_residual", "lcp_solve", "normal_target", "restitution_threshold", "solve_lcp_step",
+]
