@@ -136,6 +136,7 @@ class _Printer:
         self.ci = 0
         self.src = source.splitlines() if source else []
         self.out: list[str] = []
+        self.tails: dict[int, str] = {}  # output line index -> its end-of-line comment
 
     # comments and blank lines
     def _blank_before(self, line: int | None):
@@ -162,7 +163,7 @@ class _Printer:
             return
         c = self.comments[self.ci]
         if c.span and c.span.line == end[0] and c.span.column >= end[1] - 1:
-            self.out[-1] = self.out[-1] + "  " + c.text
+            self.tails[len(self.out) - 1] = c.text
             self.ci += 1
 
     def has_comments_in(self, node) -> bool:
@@ -200,7 +201,7 @@ class _Printer:
         inner = indent + INDENT
         bstart = _start(block)
         if bstart is not None:
-            self.trailing((bstart[0], bstart[1] + 1)) if False else None
+            self.trailing((bstart[0], bstart[1] + 1))
         for f in fields:
             if isinstance(f, ast.MaterialBlock):
                 self.block_item("material", f.block, f, inner)
@@ -309,4 +310,22 @@ def format_module(module: ast.Module, source: str | None = None) -> str:
                 p.out.append("")
         p.item(it, "")
     p.flush(None, "")
-    return "\n".join(p.out).rstrip("\n") + "\n"
+    return "\n".join(_align(p.out, p.tails)).rstrip("\n") + "\n"
+
+
+def _align(lines: list[str], tails: dict[int, str]) -> list[str]:
+    """Attach end-of-line comments, aligned within runs of consecutive commented lines."""
+    out = list(lines)
+    i = 0
+    while i < len(lines):
+        if i not in tails:
+            i += 1
+            continue
+        j = i
+        while j + 1 in tails:
+            j += 1
+        col = max(len(lines[k]) for k in range(i, j + 1)) + 2
+        for k in range(i, j + 1):
+            out[k] = lines[k].ljust(col) + tails[k]
+        i = j + 1
+    return out

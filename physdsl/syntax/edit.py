@@ -1,0 +1,208 @@
+"""Pure text -> text edits of a .phys source, through the AST and the printer (comments kept).
+
+Used by ``add-effect``, ``refine`` and friends: ``add_effect``, ``replace_value``,
+``remove_item``. Values are given as .phys value text (``"0.3 kg"``, ``"~ half_normal(1 cm)"``).
+"""
+from __future__ import annotations
+
+import dataclasses
+
+from ..errors import PhysNameError
+from . import ast
+from .ast import strip_spans
+from .parser import parse, parse_field
+from .printer import format_module
+
+_CONTACT_KEYS = {"contact_friction": "friction", "restitution": "restitution",
+                 "rolling_resistance": "rolling_resistance"}
+
+
+def _field(key: str, value_text: str) -> ast.Field:
+    text = value_text.strip()
+    src = f"{key} {text}" if text.startswith("~") else f"{key}: {text}"
+    return strip_spans(parse_field(src))
+
+
+def _with_scene_items(module: ast.Module, items) -> ast.Module:
+    scene = module.scene
+    if scene is None:
+        raise PhysNameError("the text holds no scene")
+    new_scene = dataclasses.replace(scene, items=tuple(items))
+    return dataclasses.replace(module, items=tuple(new_scene if i is scene else i
+                                                   for i in module.items))
+
+
+def _target(target) -> tuple[str, ...]:
+    if isinstance(target, str):
+        return tuple(t.strip() for t in target.strip("()").split(","))
+    return tuple(target)
+
+
+def add_effect(text: str, effect: str, target, params: dict[str, str] | None = None,
+               filename: str = "<string>") -> str:
+    """Append ``effect EFFECT on TARGET { params }`` inside the scene block."""
+    module = parse(text, filename)
+    fields = tuple(_field(k, v) for k, v in (params or {}).items())
+    item = ast.EffectItem(effect, _target(target), ast.Block(fields) if fields else None)
+    return format_module(_with_scene_items(module, module.scene.items + (item,)), text)
+
+
+def _set_field(block: ast.Block | None, key_path: list[str], value_text: str) -> ast.Block:
+    """``block`` with field ``key_path`` (e.g. ['shape', 'radius']) set, added if missing."""
+    block = block or ast.Block(())
+    key = key_path[0]
+    fields = list(block.fields)
+    if key == "material" and len(key_path) > 1:
+        for i, f in enumerate(fields):
+            if isinstance(f, ast.MaterialBlock):
+                fields[i] = dataclasses.replace(f, block=_set_field(f.block, key_path[1:], value_text))
+                return dataclasses.replace(block, fields=tuple(fields))
+        fields.append(ast.MaterialBlock(_set_field(None, key_path[1:], value_text)))
+        return dataclasses.replace(block, fields=tuple(fields))
+    for i, f in enumerate(fields):
+        if isinstance(f, ast.Field) and f.key == key:
+            if len(key_path) == 1:
+                fields[i] = dataclasses.replace(_field(key, value_text), span=f.span)
+            else:
+                fields[i] = dataclasses.replace(f, value=_set_arg(f.value, key_path[1], value_text))
+            return dataclasses.replace(block, fields=tuple(fields))
+    if len(key_path) > 1:
+        raise PhysNameError(f"no field '{key}' to change")
+    fields.append(_field(key, value_text))
+    return dataclasses.replace(block, fields=tuple(fields))
+
+
+def _set_arg(node, name: str, value_text: str):
+    """A call or record with argument ``name`` replaced (``rod.shape.radius``, ``j1.dh.a``)."""
+    value = _field("x", value_text).value
+    if isinstance(value, ast.Dist):
+        raise PhysNameError(f"'{name}' is an argument; it cannot be '~ dist(...)'",
+                            hint="declare 'param NAME ~ dist(...)' and use NAME")
+    attr = "args" if isinstance(node, ast.Call) else "fields" if isinstance(node, ast.Record) else None
+    if attr is None:
+        raise PhysNameError(f"no argument '{name}' here")
+    args = list(getattr(node, attr))
+    for i, a in enumerate(args):
+        if a.name == name:
+            args[i] = dataclasses.replace(a, value=value)
+            return dataclasses.replace(node, **{attr: tuple(args)})
+    args.append(ast.Arg(name, value))
+    return dataclasses.replace(node, **{attr: tuple(args)})
+
+
+def replace_value(text: str, path: str, value_text: str, filename: str = "<string>") -> str:
+    """Set the value at ``path``: a param ``L``, a field ``ball.velocity`` / ``rod.shape.radius``,
+    an effect parameter ``quadratic_drag@ball.coefficient`` or a noise ``ball.position.noise``.
+    A missing field or effect parameter is added."""
+    module = parse(text, filename)
+    items = list(module.scene.items) if module.scene else []
+    if "@" in path:
+        key, param = path.rsplit(".", 1)
+        effect, target = key.split("@", 1)
+        tgt = _target(target)
+        for i, it in enumerate(items):
+            if isinstance(it, ast.EffectItem) and it.effect == effect and \
+                    (it.target == tgt or (len(tgt) == 2 and set(it.target) == set(tgt))):
+                items[i] = dataclasses.replace(it, block=_set_field(it.block, [param], value_text))
+                return format_module(_with_scene_items(module, items), text)
+            if isinstance(it, ast.ContactItem) and effect in _CONTACT_KEYS and \
+                    {it.a, it.b} == set(tgt) and param == "coefficient":
+                items[i] = dataclasses.replace(
+                    it, block=_set_field(it.block, [_CONTACT_KEYS[effect]], value_text))
+                return format_module(_with_scene_items(module, items), text)
+            if isinstance(it, ast.WorldItem) and effect == "gravity" and param == "acceleration":
+                items[i] = dataclasses.replace(it, block=_set_field(it.block, ["gravity"], value_text))
+                return format_module(_with_scene_items(module, items), text)
+        raise PhysNameError(f"no effect '{key}' in the scene")
+    parts = path.split(".")
+    if len(parts) == 1:
+        for i, it in enumerate(items):
+            if isinstance(it, ast.Param) and it.name == path:
+                items[i] = dataclasses.replace(_param(path, value_text), span=it.span)
+                return format_module(_with_scene_items(module, items), text)
+        raise PhysNameError(f"no param '{path}' in the scene")
+    head, rest = parts[0], parts[1:]
+    for i, it in enumerate(items):
+        if isinstance(it, ast.ObserveItem) and f"{it.target}.{it.quantity}" == ".".join(parts[:2]) \
+                and len(rest) == 2:
+            items[i] = dataclasses.replace(it, block=_set_field(it.block, rest[1:], value_text))
+            return format_module(_with_scene_items(module, items), text)
+    for i, it in enumerate(items):
+        name = getattr(it, "name", None)
+        if head == "world" and isinstance(it, ast.WorldItem) or head == "light" and \
+                isinstance(it, ast.LightItem) or (name == head and hasattr(it, "block")
+                                                  and not isinstance(it, ast.Param)):
+            items[i] = dataclasses.replace(it, block=_set_field(it.block, rest, value_text))
+            return format_module(_with_scene_items(module, items), text)
+    raise PhysNameError(f"nothing called '{head}' in the scene")
+
+
+def _param(name: str, value_text: str) -> ast.Param:
+    f = _field(name, value_text)
+    return ast.Param(name, f.value)
+
+
+def _item_name(it) -> tuple[str, str] | None:
+    if isinstance(it, ast.Param):
+        return "param", it.name
+    if isinstance(it, ast.BodyItem):
+        return it.kind, it.name
+    if isinstance(it, ast.JointItem):
+        return "joint", it.name
+    if isinstance(it, ast.EffectItem):
+        return "effect", f"{it.effect}@{','.join(it.target)}"
+    if isinstance(it, ast.ContactItem):
+        return "contact", f"{it.a},{it.b}"
+    if isinstance(it, ast.ControlItem):
+        return "control", it.name
+    if isinstance(it, ast.CameraItem):
+        return "camera", it.name
+    if isinstance(it, ast.ObserveItem):
+        return "observe", f"{it.target}.{it.quantity}"
+    if isinstance(it, ast.LightItem):
+        return "light", "light"
+    if isinstance(it, ast.WorldItem):
+        return "world", "world"
+    return None
+
+
+def remove_item(text: str, kind: str, name: str, filename: str = "<string>") -> str:
+    """Remove the item ``kind`` ``name`` (e.g. 'effect', 'quadratic_drag@ball'; 'body', 'ball';
+    'observe', 'ball.position'; 'contact', 'floor,ball'; 'import', 'effects/drag.phys')."""
+    module = parse(text, filename)
+    if kind == "import":
+        kept = tuple(i for i in module.items if not (isinstance(i, ast.Import) and i.path == name))
+        if len(kept) == len(module.items):
+            raise PhysNameError(f"no import \"{name}\"")
+        return format_module(dataclasses.replace(module, items=kept), text)
+    want = (kind, name.replace(" ", ""))
+    items = list(module.scene.items) if module.scene else []
+    kept = []
+    for it in items:
+        got = _item_name(it)
+        if got == want or (kind in ("effect", "contact") and got and got[0] == kind
+                           and _same_pair(got[1], want[1])):
+            continue
+        kept.append(it)
+    if len(kept) == len(items):
+        raise PhysNameError(f"no {kind} '{name}' in the scene")
+    # comments inside a removed item go with it
+    removed = [it for it in items if it not in kept]
+    comments = tuple(c for c in module.comments if not any(_inside(c, it) for it in removed))
+    module = dataclasses.replace(module, comments=comments)
+    return format_module(_with_scene_items(module, kept), text)
+
+
+def _same_pair(a: str, b: str) -> bool:
+    ea, _, ta = a.partition("@")
+    eb, _, tb = b.partition("@")
+    if "@" not in a:
+        return set(a.split(",")) == set(b.split(","))
+    return ea == eb and set(ta.split(",")) == set(tb.split(","))
+
+
+def _inside(c: ast.Comment, it) -> bool:
+    s = getattr(it, "span", None)
+    if s is None or c.span is None:
+        return False
+    return (s.line, s.column) <= (c.span.line, c.span.column) and c.span.line <= s.end_line
