@@ -67,6 +67,18 @@ def bias_forces(model: Model, kin: Kin):
     return inverse_dynamics(model, kin, jnp.zeros(model.nv, dtype=kin.vel.dtype))
 
 
+def small_inv(D):
+    """Inverse of a small SPD joint-space matrix: closed form for 1x1 and 3x3 (cheap to compile)."""
+    n = D.shape[0]
+    if n == 1:
+        return 1.0 / D
+    if n == 3:
+        a, b, c = D[0], D[1], D[2]
+        adj = jnp.stack([jnp.cross(b, c), jnp.cross(c, a), jnp.cross(a, b)], 1)
+        return adj / jnp.dot(a, jnp.cross(b, c))
+    return jnp.linalg.inv(D)
+
+
 def forward_dynamics(model: Model, kin: Kin, tau):
     """Joint accelerations qdd = M^-1 (tau - bias) by the articulated-body algorithm, O(n)."""
     B = model.nbody
@@ -83,7 +95,7 @@ def forward_dynamics(model: Model, kin: Kin, tau):
             S = kin.S[i]
             U[i] = Ia @ S
             D = S.T @ U[i]
-            Dinv[i] = jnp.linalg.inv(D)
+            Dinv[i] = small_inv(D)
             u[i] = tau[tj.vadr:tj.vadr + tj.nv] - S.T @ pa
             Ia = Ia - U[i] @ Dinv[i] @ U[i].T
             pa = pa + Ia @ c + U[i] @ (Dinv[i] @ u[i])

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import jax
 import jax.numpy as jnp
 
 from . import contact_stage as cs
@@ -71,16 +72,34 @@ def step(model: Model, prm: dict, state: State, t, h):
         v_next, cf = cs.lcp_velocity(model, con, M, v, v_free, h)
         return State(integrate_q(model, q, v_next, h), v_next, cf, con.normal)
     if model.integrator == "rk4" and not model.ncon:
-        a1, _, _ = _accel(model, prm, q, v, state, t, t)
-        v2 = v + 0.5 * h * a1
-        a2, _, _ = _accel(model, prm, integrate_q(model, q, v, 0.5 * h), v2, state, t + 0.5 * h, t)
-        v3 = v + 0.5 * h * a2
-        a3, _, _ = _accel(model, prm, integrate_q(model, q, v2, 0.5 * h), v3, state, t + 0.5 * h, t)
-        v4 = v + h * a3
-        a4, _, _ = _accel(model, prm, integrate_q(model, q, v3, h), v4, state, t + h, t)
-        v_next = v + h / 6.0 * (a1 + 2 * a2 + 2 * a3 + a4)
-        q_next = integrate_q(model, q, (v + 2 * v2 + 2 * v3 + v4) / 6.0, h)
-        return State(q_next, v_next, state.contact_force, state.contact_normal)
+        return _rk4(model, prm, state, t, h)
     a, cf, cn = _accel(model, prm, q, v, state, t, t)
     v_next = v + h * a
     return State(integrate_q(model, q, v_next, h), v_next, cf, cn)
+
+
+_RK4_C = (0.0, 0.5, 0.5, 1.0)
+_RK4_W = (1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0)
+
+
+def _rk4(model: Model, prm: dict, state: State, t, h):
+    """Classic RK4 on (q, v), positions advanced on the manifold by stage velocities (as MuJoCo).
+
+    Stage i evaluates a_i at (q (+) c_i h v_{i-1}, v + c_i h a_{i-1}); the four stages run in a
+    scan so the dynamics are traced and compiled once.
+    """
+    q, v = state.q, state.v
+
+    def stage(carry, cw):
+        v_prev, a_prev, v_sum, a_sum = carry
+        ci, wi = cw[0], cw[1]
+        qi = integrate_q(model, q, v_prev, ci * h)
+        vi = v + ci * h * a_prev
+        ai, _, _ = _accel(model, prm, qi, vi, state, t + ci * h, t)
+        return (vi, ai, v_sum + wi * vi, a_sum + wi * ai), None
+
+    z = jnp.zeros_like(v)
+    cw = jnp.array([_RK4_C, _RK4_W], dtype=v.dtype).T
+    (_, _, v_avg, a_avg), _ = jax.lax.scan(stage, (v, z, z, z), cw)
+    return State(integrate_q(model, q, v_avg, h), v + h * a_avg, state.contact_force,
+                 state.contact_normal)
