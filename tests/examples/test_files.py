@@ -96,3 +96,12 @@ def test_hidden_effect_case_is_complete(case):
     assert len(strength) == 1
     readme = [ln for ln in (case / "README.md").read_text().splitlines() if ln.strip()]
     assert readme[0].startswith("# ") and 2 <= len(readme) - 1 <= 5
+
+
+@pytest.mark.parametrize("path", SCENES, ids=lambda p: str(p.relative_to(EXAMPLES)))
+def test_scene_resolves_with_the_unknowns_of_its_truth(path):
+    syntax = pytest.importorskip("physdsl.syntax")
+    scene = syntax.load(path)
+    truth = json.loads((path.parent / "truth.json").read_text())
+    expected = truth["unknowns"] if "unknowns" in truth else truth["naive_unknowns"]
+    assert {u.name for u in scene.unknowns} == set(expected)
