@@ -27,6 +27,14 @@ class Loaded:
     sources: dict[str, str] = field(default_factory=dict)  # file name -> text, for errors
 
 
+def display_name(path: Path) -> str:
+    """A file name for messages: relative to the working folder when below it."""
+    try:
+        return str(path.relative_to(Path.cwd()))
+    except ValueError:
+        return str(path)
+
+
 def find_import(path: str, importer_dir: Path | None) -> Path | None:
     """stdlib first, then relative to the importing file."""
     for base in (STDLIB_DIR, importer_dir):
@@ -64,7 +72,7 @@ def expand(module: ast.Module, module_dir: Path | None, loaded: Loaded, chain: t
             loaded.seen.add(target)
             try:
                 text = _read(target)
-                sub = parse(text, str(target))
+                sub = parse(text, display_name(target))
             except PhysError as ex:
                 errors.append(ex)
                 continue
@@ -72,7 +80,7 @@ def expand(module: ast.Module, module_dir: Path | None, loaded: Loaded, chain: t
                 errors.append(PhysImportError(f"cannot read import \"{item.path}\": {ex.strerror}",
                                               item.span, source=source))
                 continue
-            loaded.sources[str(target)] = text
+            loaded.sources[display_name(target)] = text
             if sub.scene is not None:
                 errors.append(PhysImportError(
                     f"imported file \"{item.path}\" holds a scene", item.span,

@@ -314,14 +314,17 @@ def _describe_expected(expected: set[str]) -> str:
     names = set(expected)
     parts = []
     if names & _VALUE_START and ("NUMBER" in names or "LPAR" in names):
-        parts.append(_VALUE_WORDS if "TILDE" in names else "a value (number, vector or name)")
+        parts.append(_VALUE_WORDS)
         names -= _VALUE_START | {"TILDE"}
     if {"KEY", "RBRACE"} <= names:
         parts.append("a field (like 'mass: 1 kg') or '}'")
         names -= {"KEY", "RBRACE", "MATERIAL"}
-    ops = {"PLUS", "MINUS", "STAR", "SLASH", "CIRCUMFLEX", "UNIT"}
+    if "SCENE" in names:
+        parts.append("'scene NAME { ... }', 'import', 'param' or 'effect_type'")
+        names -= {"SCENE", "IMPORT", "PARAM", "EFFECT_TYPE", "$END"}
+    ops = {"PLUS", "MINUS", "STAR", "SLASH", "CIRCUMFLEX", "UNIT", "DOT", "LPAR"}
     if len(names & ops) >= 3:
-        names -= ops | {"COMMA", "RPAR", "DOT", "LPAR"}
+        names -= ops
     keywords = sorted(n for n in names if _term_words(n).strip("'") in _ITEM_WORDS)
     if len(keywords) >= 4:
         parts.append("a scene item (body, joint, effect, observe, ...)")
@@ -397,7 +400,21 @@ def syntax_error(ex: UnexpectedInput, text: str, filename: str) -> PhysSyntaxErr
                 f"expected '}}' to close the block '{label}' opened at line {at}, found {found}",
                 span, f"add '}}' after the last field of '{label}'", source=text)
     hint = None
-    if tok is not None and tok.type in ("NAME", "UNIT") and "KEY" in expected:
+    before = text[:_offset(text, span.line, span.column)].rsplit("\n", 1)[-1]
+    lone = re.fullmatch(r"\s*([A-Za-z_][A-Za-z0-9_]*)\s*", before)
+    if tok is not None and tok.type == "COLON":
+        word = re.search(r"([A-Za-z_][A-Za-z0-9_]*)\s*$", before)
+        if word and _VALUE_START & expected:
+            return PhysSyntaxError(f"expected a value, found the field '{word.group(1)}:'", span,
+                                   "a field needs a value after ':', e.g. 'mass: 1 kg'", source=text)
+    if lone and tok is not None and lone.group(1) not in _ITEM_WORDS and (
+            "KEY" not in expected or tok.type in ("NUMBER", "STRING", "LPAR", "MINUS")):
+        w = lone.group(1)
+        return PhysSyntaxError(f"expected ':' after '{w}', found {found}", span,
+                               f"a field is written '{w}: value' or '{w} ~ dist(...)'", source=text)
+    if tok is not None and tok.type in ("NUMBER", "NAME") and "COMMA" in expected and "RPAR" in expected:
+        hint = "separate the items of a vector with ','"
+    elif tok is not None and tok.type in ("NAME", "UNIT") and "KEY" in expected:
         hint = f"a field is written '{tok}: value' (with a colon) or '{tok} ~ dist(...)'"
     elif tok is not None and tok.type == "UNIT" and "/" in str(tok) or (
             tok is not None and tok.type == "UNIT" and "*" in str(tok)):

@@ -7,6 +7,7 @@ collected and raised together as PhysErrors.
 from __future__ import annotations
 
 import difflib
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import NamedTuple
@@ -357,6 +358,12 @@ class Resolver:
                                    "products N*m, quotients m/s, powers m/s^2") from None
 
     def with_unit(self, node: ast.WithUnit) -> R:
+        for part in re.findall(r"[A-Za-z_][A-Za-z0-9_]*", node.unit):
+            if part in self.sources and "." not in part:
+                hint = (f"write '* {part}' to multiply by it" if node.unit == part else
+                        f"put spaces around '/' or '*' to compute with it, e.g. '1 m / {part}'")
+                raise self.err(PhysUnitError, f"'{part}' in the unit '{node.unit}' is a param, not a "
+                               "unit", node.unit_span, hint)
         scale, udim = self.unit(node.unit, node.unit_span)
         if isinstance(node.value, ast.Call) and node.value.func == "euler":
             return self.call(node.value, (scale, udim, node.unit_span))

@@ -128,7 +128,8 @@ _PREFERRED = [
     (Dim.of(kg=1, s=-1), "kg/s"), (Dim.of(kg=1, m=-1), "kg/m"), (Dim.of(kg=1, m=-3), "kg/m^3"),
     (Dim.of(m=1, s=-2), "m/s^2"), (Dim.of(m=1, s=-1), "m/s"), (Dim.of(rad=1, s=-1), "rad/s"),
     (Dim.of(kg=1, m=2, s=-1, rad=-1), "N*m*s/rad"), (Dim.of(kg=1, m=2), "kg*m^2"),
-    (Dim.of(kg=1, m=2, s=-1), "N*m*s"), (Dim.of(s=-1), "1/s"),
+    (Dim.of(kg=1, m=2, s=-1), "N*m*s"), (Dim.of(s=-1), "1/s"), (Dim.of(kg=1, m=1, s=-1), "N*s"),
+    (Dim.of(kg=1, m=2, s=-1, rad=-1), "N*m*s/rad"),
 ]
 
 
