@@ -2,7 +2,8 @@
 velocity step or compliant (penalty) forces, by ``scene.world.contact_model``.
 
 Rows of the contact arrays are the candidates of every pair in ``model.pairs`` order (static
-count K per pair). Normals point from body b towards body a, so a positive normal impulse
+count K per pair). Friction uses a 4-edge polyhedral cone (+-t1, +-t2) in the LCP model.
+Normals point from body b towards body a, so a positive normal impulse
 pushes a away from b.
 """
 from __future__ import annotations
@@ -22,7 +23,7 @@ class Contacts(NamedTuple):
     active: jnp.ndarray  # (C,) bool
     J: jnp.ndarray  # (C, 3, nv) relative point-velocity Jacobian (a minus b), world axes
     Jn: jnp.ndarray  # (C, nv)
-    Jt: jnp.ndarray  # (C, 2, nv) along two tangents
+    Jt: jnp.ndarray  # (C, 4, nv) along the friction directions t1, t2, -t1, -t2
     mu: jnp.ndarray  # (C,)
     e: jnp.ndarray  # (C,)
 
@@ -57,7 +58,8 @@ def detect_all(model: Model, prm: dict, kin: Kin) -> Contacts:
     J = jnp.stack(J)
     Jn = jnp.einsum("ck,ckn->cn", normal, J)
     t1, t2 = zip(*[tangents(n) for n in normal])
-    T = jnp.stack([jnp.stack(t1), jnp.stack(t2)], 1)  # (C, 2, 3)
+    t1, t2 = jnp.stack(t1), jnp.stack(t2)
+    T = jnp.stack([t1, t2, -t1, -t2], 1)  # (C, 4, 3): polyhedral cone with 4 edges
     Jt = jnp.einsum("cfk,ckn->cfn", T, J)
     return Contacts(jnp.concatenate(dist), normal, jnp.concatenate(active), J, Jn, Jt,
                     jnp.concatenate(mu), jnp.concatenate(e))

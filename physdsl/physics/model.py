@@ -256,17 +256,5 @@ def build_model(scene: Scene) -> Model:
 
 
 def _contact_count(contact_mod, ka: str, kb: str) -> int:
-    """Number K of contact points the detector returns for a pair of shape kinds (static)."""
-    import jax
-    import jax.numpy as jnp
-
-    z3, q = jnp.zeros(3), jnp.array([1.0, 0.0, 0.0, 0.0])
-    size = jnp.array([0.1, 0.1, 0.1])
-    nrm = jnp.array([0.0, 0.0, 1.0])
-    try:
-        out = jax.eval_shape(lambda: contact_mod.detect(ka, kb, z3, q, nrm if ka == "plane" else size,
-                                                        z3, q, nrm if kb == "plane" else size))
-    except (NotImplementedError, KeyError, ValueError) as exc:
-        raise ModelError(f"contact between {ka} and {kb} is not supported: {exc}",
-                         hint="change one shape or remove the pair") from exc
-    return int(out.dist.shape[0])
+    """Number K of contact candidates the detector returns for a pair of shape kinds (static)."""
+    return int(contact_mod.contact_count(ka, kb))
