@@ -607,8 +607,6 @@ class Resolver:
         for name, (p, text) in self.lib.params.items():
             self.register(name, p.value, None)
         self.declare(scene)
-        if self.errors:
-            self._raise()
         built = self.build(scene)
         self._raise()
         return built
