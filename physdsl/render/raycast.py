@@ -79,8 +79,14 @@ def ray_convex(o, d, kind, pos, quat, size, iterations=24):
     slope = fs(jnp.dot(grad_p(o_s + t_root * d_s), d_s))
     slope = jnp.where(slope < -1e-9, slope, -1e-9)
     t_hit = t_root - f(t_root) / slope  # one Newton step: exact first-order gradients of depth
-    t = jnp.where(hit, t_hit, t_min)
-    g = jax.grad(lambda p: sdf(kind, p, size))(ol + t * dl)
+    # a missed ray's depth is the object centre's along the ray: differentiable, and it only
+    # sets the silhouette's edge width (alpha is 1/2 at the edge whatever the width)
+    tc = -jnp.dot(ol, dl)
+    t = jnp.where(hit, t_hit, jnp.maximum(tc, NEAR))
+    # a missed ray is shaded at its closest point, moved with the centre's depth for gradients
+    # (exact for spheres, first-order otherwise; it only colours the soft fringe)
+    t_close = t_min + tc - fs(tc)
+    g = jax.grad(lambda p: sdf(kind, p, size))(ol + jnp.where(hit, t_hit, t_close) * dl)
     n_local = g / jnp.sqrt(jnp.sum(g * g) + 1e-24)
     return sd, t, rot @ n_local
 
