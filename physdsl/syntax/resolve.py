@@ -22,7 +22,8 @@ from ..scene import (DH, Body, Camera, EffectDecl, EffectParam, EffectUse, Joint
 from . import ast, dists
 from .data import read_control, read_image_times, read_observation
 from .library import load_library
-from .units import (ANGLE, DIMLESS, LENGTH, MASS, TIME, Dim, UnitError, known_units, parse_unit)
+from .units import (ANGLE, DIMLESS, LENGTH, MASS, TIME, Dim, UnitError, known_units, lookup,
+                    parse_unit)
 
 VEL = Dim.of(m=1, s=-1)
 ACC = Dim.of(m=1, s=-2)
@@ -359,7 +360,7 @@ class Resolver:
 
     def with_unit(self, node: ast.WithUnit) -> R:
         for part in re.findall(r"[A-Za-z_][A-Za-z0-9_]*", node.unit):
-            if part in self.sources and "." not in part:
+            if part in self.sources and "." not in part and not _is_unit(part):
                 hint = (f"write '* {part}' to multiply by it" if node.unit == part else
                         f"put spaces around '/' or '*' to compute with it, e.g. '1 m / {part}'")
                 raise self.err(PhysUnitError, f"'{part}' in the unit '{node.unit}' is a param, not a "
@@ -1305,6 +1306,14 @@ class _Any:
 
     def __iter__(self):
         return iter(())
+
+
+def _is_unit(symbol: str) -> bool:
+    try:
+        lookup(symbol)
+        return True
+    except UnitError:
+        return False
 
 
 def _fmt(arr: np.ndarray) -> str:
