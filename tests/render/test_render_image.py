@@ -62,6 +62,7 @@ def test_video_roundtrip(tmp_path, ball_case):
     assert np.abs(got - frames[:5]).mean() < 0.03  # lossy codec
 
 
+@pytest.mark.slow  # one large compile of render's gradient (about a minute on 2 cores)
 def test_likelihood_gradients_match_finite_differences():
     observed = render(_sphere(0.01, 0.005), LIGHT, CAM, BG, 0.5)
 
