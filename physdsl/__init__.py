@@ -26,3 +26,7 @@ __all__ = [
     "PhysNameError", "PhysStructureError", "PhysSyntaxError", "PhysTypeError", "PhysUnitError",
     "Scene", "Span", "UsageError", "__version__",
 ]
+
+from .syntax import format_source, load, parse  # noqa: E402  (the .phys language)
+
+__all__ += ["format_source", "load", "parse"]
