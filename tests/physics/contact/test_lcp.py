@@ -1,0 +1,231 @@
+"""The interior-point contact LCP: analytic cases, the elastic swap, and implicit gradients."""
+from functools import partial
+
+import numpy as np
+import pytest
+
+import physdsl  # noqa: F401  (float64)
+import jax
+import jax.numpy as jnp
+
+from physdsl.physics.contact import (IPSettings, LCPSettings, build_lcp, lcp_residual, lcp_solve,
+                                     restitution_threshold, solve_lcp_step)
+
+G, H = 9.81, 0.01
+JN_Z = jnp.array([[0.0, 0.0, 1.0]])
+JT_XY = jnp.array([[[1.0, 0, 0], [-1.0, 0, 0], [0, 1.0, 0], [0, -1.0, 0]]])
+step = jax.jit(solve_lcp_step, static_argnums=(10,))
+
+
+def ball_on_plane(m, v_free, mu, e=0.0, vn_pre=0.0, dist=0.0, active=True):
+    """A point-mass ball (M = m I3) touching the plane z = 0 with one contact."""
+    return step(m * jnp.eye(3), jnp.asarray(v_free, float), JN_Z, JT_XY, jnp.array([mu]),
+                jnp.array([e]), jnp.array([vn_pre]), jnp.array([dist]), jnp.array([active]), H,
+                LCPSettings())
+
+
+def test_resting_contact():
+    m = 2.0
+    v, lam_n, lam_t = ball_on_plane(m, [0, 0, -G * H], mu=0.5)
+    np.testing.assert_allclose(v, 0.0, atol=1e-12)
+    np.testing.assert_allclose(lam_n, [m * G * H], rtol=1e-10)
+    assert lam_t.shape == (1, 4)
+
+
+@pytest.mark.parametrize("vx", [0.02, 0.04])
+def test_friction_sticks_below_the_cone(vx):
+    m, mu = 2.0, 0.5  # needed impulse m vx = 0.04, 0.08 < mu m g h = 0.0981
+    v, lam_n, lam_t = ball_on_plane(m, [vx, 0, -G * H], mu=mu)
+    np.testing.assert_allclose(v, 0.0, atol=1e-10)
+    np.testing.assert_allclose(lam_t[0, 1] - lam_t[0, 0], m * vx, rtol=1e-8)
+    assert float(jnp.sum(lam_t)) <= mu * float(lam_n[0]) * (1 + 1e-9)
+
+
+@pytest.mark.parametrize("vx,vy", [(0.05, 0.0), (0.5, 0.0), (0.0, -0.3)])
+def test_friction_slides_above_the_cone(vx, vy):
+    m, mu = 2.0, 0.5
+    v, lam_n, lam_t = ball_on_plane(m, [vx, vy, -G * H], mu=mu)
+    slide = mu * G * H  # velocity removed by the full cone impulse mu m g h / m
+    expect = [np.sign(vx) * max(abs(vx) - slide, 0), np.sign(vy) * max(abs(vy) - slide, 0), 0.0]
+    np.testing.assert_allclose(v, expect, atol=1e-10)
+    np.testing.assert_allclose(jnp.sum(lam_t), mu * lam_n[0], rtol=1e-8)
+
+
+def test_frictionless_rows_are_inert():
+    v, _, lam_t = ball_on_plane(2.0, [0.7, -0.2, -G * H], mu=0.0)
+    np.testing.assert_allclose(v, [0.7, -0.2, 0.0], atol=1e-12)
+    np.testing.assert_array_equal(lam_t, 0.0)
+
+
+def test_elastic_bounce_and_threshold():
+    v, _, _ = ball_on_plane(1.0, [0.0, 0, -2.0 - G * H], mu=0.3, e=1.0, vn_pre=-2.0)
+    np.testing.assert_allclose(v, [0, 0, 2.0], atol=1e-10)
+    v, _, _ = ball_on_plane(1.0, [0.0, 0, -2.0 - G * H], mu=0.3, e=0.5, vn_pre=-2.0)
+    np.testing.assert_allclose(v, [0, 0, 1.0], atol=1e-10)
+    slow = -0.5 * restitution_threshold  # below the threshold: no bounce
+    v, _, _ = ball_on_plane(1.0, [0.0, 0, slow], mu=0.3, e=1.0, vn_pre=slow)
+    np.testing.assert_allclose(v, 0.0, atol=1e-10)
+
+
+def test_penetration_is_pushed_out_and_gaps_may_close():
+    beta = LCPSettings().baumgarte
+    v, _, _ = ball_on_plane(1.0, [0, 0, -G * H], mu=0.3, dist=-0.002)
+    np.testing.assert_allclose(v[2], beta * 0.002 / H, rtol=1e-9)
+    # a speculative contact 1 mm away: the ball may approach at 0.1 m/s but not faster
+    v, _, _ = ball_on_plane(1.0, [0, 0, -0.05], mu=0.3, dist=0.001)
+    np.testing.assert_allclose(v[2], -0.05, atol=1e-10)
+    v, lam_n, _ = ball_on_plane(1.0, [0, 0, -0.5], mu=0.3, dist=0.001)
+    np.testing.assert_allclose(v[2], -0.001 / H, rtol=1e-9)
+
+
+def test_inactive_contacts_are_inert():
+    m = 2.0
+    rng = np.random.default_rng(0)
+    Jn = jnp.concatenate([JN_Z, jnp.asarray(rng.normal(size=(2, 3)))])
+    Jt = jnp.concatenate([JT_XY, jnp.asarray(rng.normal(size=(2, 4, 3)))])
+    args = (jnp.array([0.5, 0.9, 0.2]), jnp.array([0.0, 1.0, 0.5]), jnp.array([0.0, -3.0, -1.0]),
+            jnp.array([0.0, -0.1, -0.2]), jnp.array([True, False, False]), H)
+
+    def f(Jn, Jt, v_free):
+        return step(m * jnp.eye(3), v_free, Jn, Jt, *args, LCPSettings())
+
+    v_free = jnp.array([0.2, 0, -G * H])
+    v, lam_n, lam_t = f(Jn, Jt, v_free)
+    v1, lam1, _ = ball_on_plane(m, v_free, mu=0.5)
+    np.testing.assert_allclose(v, v1, atol=1e-12)
+    np.testing.assert_array_equal(lam_n[1:], 0.0)
+    np.testing.assert_array_equal(lam_t[1:], 0.0)
+    gJn, gJt = jax.grad(lambda a, b: jnp.sum(f(a, b, v_free)[0] ** 2), argnums=(0, 1))(Jn, Jt)
+    np.testing.assert_array_equal(gJn[1:], 0.0)
+    np.testing.assert_array_equal(gJt[1:], 0.0)
+
+
+def test_no_contacts():
+    v, lam_n, lam_t = solve_lcp_step(jnp.eye(2), jnp.ones(2), jnp.zeros((0, 2)),
+                                     jnp.zeros((0, 4, 2)), *(jnp.zeros(0),) * 4,
+                                     jnp.zeros(0, bool), H)
+    np.testing.assert_array_equal(v, 1.0)
+    assert lam_n.shape == (0,) and lam_t.shape == (0, 4)
+
+
+@partial(jax.jit, static_argnames=("m", "implicit"))
+def two_balls(v_minus, e=1.0, m=(1.0, 1.0), implicit=True):
+    """Head-on collision along x: contact row Jn = [-1, 1] (gap between ball 2 and ball 1)."""
+    settings = LCPSettings(solver=IPSettings(implicit=implicit))
+    Jn = jnp.array([[-1.0, 1.0]])
+    v, _, _ = solve_lcp_step(jnp.diag(jnp.asarray(m)), v_minus, Jn, jnp.zeros((1, 4, 2)),
+                             jnp.zeros(1), jnp.array([e]), Jn @ v_minus, jnp.zeros(1),
+                             jnp.array([True]), H, settings)
+    return v
+
+
+def test_elastic_head_on_collision_swaps_velocities_and_jacobian():
+    v_minus = jnp.array([1.5, -0.5])
+    np.testing.assert_allclose(two_balls(v_minus), [-0.5, 1.5], atol=1e-12)
+    jac = jax.jit(jax.jacrev(two_balls))(v_minus)
+    np.testing.assert_allclose(jac, [[0.0, 1.0], [1.0, 0.0]], atol=1e-10)
+    # unequal masses: momentum and energy conserved, the classic 1D result
+    m1, m2 = 1.0, 3.0
+    v = two_balls(v_minus, m=(m1, m2))
+    u1, u2 = v_minus
+    np.testing.assert_allclose(v, [((m1 - m2) * u1 + 2 * m2 * u2) / (m1 + m2),
+                                   ((m2 - m1) * u2 + 2 * m1 * u1) / (m1 + m2)], atol=1e-10)
+
+
+def test_kkt_residual_small_at_solution():
+    for seed in range(3):
+        A, q, z, w = solve_zw(random_problem(seed))
+        assert float(lcp_residual(A, q, z)) < 1e-12 * float(jnp.max(jnp.abs(q)))
+        assert float(jnp.min(z)) >= 0.0
+        assert float(jnp.min(w)) > -1e-12 * float(jnp.max(jnp.abs(q)))
+
+
+def random_problem(seed, n=6, C=3, F=4):
+    """A well-conditioned random contact step: SPD M, compressive contacts, mixed friction."""
+    rng = np.random.default_rng(seed)
+    B = rng.normal(size=(n, n))
+    M = B @ B.T + n * np.eye(n)
+    Jn = rng.normal(size=(C, n))
+    t1 = rng.normal(size=(C, n))
+    t2 = rng.normal(size=(C, n))
+    Jt = np.stack([t1, -t1, t2, -t2], axis=1)
+    v_free = -0.5 * np.linalg.lstsq(Jn, np.ones(C), rcond=None)[0] + 0.05 * rng.normal(size=n)
+    mu = rng.uniform(0.3, 1.0, C)
+    e = rng.uniform(0.2, 0.8, C)
+    vn_pre = -rng.uniform(0.5, 1.0, C)
+    dist = np.zeros(C)
+    active = np.ones(C, bool)
+    return tuple(jnp.asarray(x) for x in (M, v_free, Jn, Jt, mu, e, vn_pre, dist, active))
+
+
+@jax.jit
+def solve_zw(p):
+    lcp = build_lcp(*p[:9], H)
+    z = lcp_solve(lcp.A, lcp.q)
+    return lcp.A, lcp.q, z, lcp.A @ z + lcp.q
+
+
+def strictly_complementary(p, gap=1e-4):
+    """Away from kinks: each pair has z or w clearly positive (FD across a kink is meaningless)."""
+    _, _, z, w = solve_zw(p)
+    C = p[2].shape[0]
+    zw = jnp.maximum(z, w)
+    # friction direction pairs may both be zero when sticking; check normal and cone rows
+    return bool(jnp.min(zw[:C]) > gap and jnp.min(zw[-C:]) > gap)
+
+
+def loss_fn(implicit):
+    settings = LCPSettings(solver=IPSettings(implicit=implicit))
+    rng = np.random.default_rng(99)
+    wv, wl = jnp.asarray(rng.normal(size=6)), jnp.asarray(rng.normal(size=3))
+
+    def loss(theta, p):
+        M, v_free, Jn, Jt, mu, e, vn_pre, dist, active = p
+        M = M + theta["dM"]
+        v, lam_n, _ = solve_lcp_step(M, v_free + theta["dv"], Jn, Jt, mu + theta["dmu"],
+                                     e + theta["de"], vn_pre, dist, active, H, settings)
+        return jnp.dot(wv, v) + jnp.dot(wl, lam_n) / H
+
+    return loss
+
+
+def zero_theta():
+    return {"dM": jnp.zeros((6, 6)), "dv": jnp.zeros(6), "dmu": jnp.zeros(3), "de": jnp.zeros(3)}
+
+
+def test_implicit_gradients_match_finite_differences_and_unrolling():
+    loss = loss_fn(True)
+    grad_implicit = jax.jit(jax.grad(loss))
+    grad_unrolled = jax.jit(jax.grad(loss_fn(False)))
+    loss_j = jax.jit(loss)
+    seeds = [s for s in range(12) if strictly_complementary(random_problem(s))][:3]
+    # the loss is O(1e3) here: FD carries ~1e-14 relative solver noise / eps, hence the atol
+    assert len(seeds) == 3
+    rng = np.random.default_rng(1)
+    for seed in seeds:
+        p = random_problem(seed)
+        th = zero_theta()
+        g = grad_implicit(th, p)
+        # directions: each v_free, mu, e entry, and symmetric perturbations of M
+        dirs = []
+        for key, shape in (("dv", (6,)), ("dmu", (3,)), ("de", (3,))):
+            for i in range(shape[0]):
+                d = zero_theta()
+                d[key] = d[key].at[i].set(1.0)
+                dirs.append(d)
+        for _ in range(4):
+            S = rng.normal(size=(6, 6))
+            d = zero_theta()
+            d["dM"] = jnp.asarray(S + S.T)
+            dirs.append(d)
+        eps = 1e-5
+        scale = max(float(jnp.max(jnp.abs(x))) for x in jax.tree.leaves(g))
+        for d in dirs:
+            plus = jax.tree.map(lambda a, b: a + eps * b, th, d)
+            minus = jax.tree.map(lambda a, b: a - eps * b, th, d)
+            fd = (loss_j(plus, p) - loss_j(minus, p)) / (2 * eps)
+            an = sum(jnp.vdot(g[k], d[k]) for k in th)
+            assert abs(float(an - fd)) <= 1e-3 * abs(float(fd)) + 1e-8 * scale, (seed, d, an, fd)
+        gu = grad_unrolled(th, p)
+        for k in th:
+            np.testing.assert_allclose(g[k], gu[k], rtol=1e-5, atol=1e-8)
