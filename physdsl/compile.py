@@ -94,10 +94,11 @@ class ObservedTrajectory:
 class Model:
     """A compiled scene: simulate, predict, the numpyro program, and inference entry points."""
 
-    def __init__(self, scene: Scene):
+    def __init__(self, scene: Scene, until: float | None = None):
         from .physics import build_simulator
 
         self.scene = scene
+        self.until = until  # fit only measurements up to this time (leave-future-out)
         self.simulator = build_simulator(scene)
         self.unknowns = tuple(dependency_order(scene.unknowns))
         self.observed = tuple(self._prepare(o) for o in scene.observations
@@ -111,7 +112,10 @@ class Model:
         if obs.quantity == "orientation":
             missing = ~obs.mask.all(axis=1)
             measured[missing] = (1.0, 0.0, 0.0, 0.0)
-        return ObservedTrajectory(obs, interp, measured, trajectory.residual_mask(obs))
+        mask = trajectory.residual_mask(obs)
+        if self.until is not None:
+            mask = mask & (obs.times <= self.until)[:, None]
+        return ObservedTrajectory(obs, interp, measured, mask)
 
     @property
     def unknown_names(self) -> tuple[str, ...]:

@@ -1,0 +1,29 @@
+"""``physdsl check SCENE.phys --posterior RUN/ -o REPORT/``: where the model misses the data."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("check")
+    def check(
+        scene: Path = typer.Argument(..., help="Scene file (.phys) that was fitted."),
+        posterior: Path = typer.Option(..., "--posterior", "-p", help="Run folder of `physdsl infer`."),
+        out: Path = typer.Option(..., "-o", "--out", help="Report folder."),
+        windows: int = typer.Option(4, "--windows", min=1, help="Equal time windows per observable."),
+        force: bool = typer.Option(False, "--force", help="Overwrite a non-empty report folder."),
+    ) -> None:
+        """Residuals per observable and time window in noise units, misfit shapes, plots, HTML."""
+        from .. import io
+        from ..compile import Model
+        from ..infer.output import load_run
+        from ..syntax import load
+
+        model = Model(load(scene))
+        idata, _ = load_run(posterior)
+        io.prepare_outdir(out, force=force)
+        report = model.check(idata, outdir=out, windows=windows)
+        typer.echo(report.text())
+        typer.echo(f"wrote {out}/report.json, report.md, index.html")

@@ -1,0 +1,33 @@
+"""``physdsl diagnose SCENE.phys --posterior RUN/ -o DIAG/``: which effect is missing."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("diagnose")
+    def diagnose(
+        scene: Path = typer.Argument(..., help="Scene file (.phys) that was fitted."),
+        posterior: Path = typer.Option(..., "--posterior", "-p", help="Run folder of `physdsl infer`."),
+        out: Path = typer.Option(..., "-o", "--out", help="Output folder."),
+        confirm: int = typer.Option(3, "--confirm", min=0, help="Refit the best N candidates."),
+        force: bool = typer.Option(False, "--force", help="Overwrite a non-empty output folder."),
+    ) -> None:
+        """Rank candidate missing effects (score tests), confirm the best by refitting."""
+        from .. import io
+        from ..compile import Model
+        from ..diagnose.rank import diagnose as run
+        from ..infer.output import load_run
+        from ..syntax import load
+
+        model = Model(load(scene))
+        idata, _ = load_run(posterior)
+        io.prepare_outdir(out, force=force)
+        d = run(model, idata, confirm_top=confirm, outdir=out)
+        typer.echo(d.table())
+        typer.echo(d.verdict)
+        if d.winner is not None and d.winner.snippet:
+            typer.echo("\nadd to the scene:\n" + d.winner.snippet)
+        typer.echo(f"wrote {out}/diagnosis.json")

@@ -1,0 +1,33 @@
+"""``physdsl refine SCENE.phys -o OUT/``: fit, check, diagnose, add the effect, refit; watch the error fall."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("refine")
+    def refine(
+        scene: Path = typer.Argument(..., help="Scene file (.phys); it is never edited."),
+        out: Path = typer.Option(..., "-o", "--out", help="Output folder (round-0/, round-1/, ...)."),
+        max_rounds: int = typer.Option(3, "--max-rounds", min=0, help="Effects to add at most."),
+        backend: str = typer.Option("nuts", "--backend", "-b", help="Backend for each round's fit."),
+        chains: int = typer.Option(2, "--chains", min=1),
+        warmup: int = typer.Option(300, "--warmup", min=0),
+        samples: int = typer.Option(300, "--samples", min=1),
+        seed: int = typer.Option(0, "--seed"),
+        force: bool = typer.Option(False, "--force", help="Overwrite a non-empty output folder."),
+    ) -> None:
+        """The diagnosis loop: stops when residuals reach the noise or nothing in the library helps."""
+        from ..diagnose.refine import refine as run
+        from ..infer import get_backend
+
+        get_backend(backend)
+        rounds = run(scene, out, max_rounds=max_rounds, backend=backend, chains=chains,
+                     warmup=warmup, samples=samples, seed=seed, force=force, echo=typer.echo)
+        typer.echo("\nround  added                              RMS (noise units)   ELPD")
+        for r in rounds:
+            add = f"{r.added['effect']} on {r.added['target']}" if r.added else "-"
+            typer.echo(f"{r.index:>5}  {add:<34} {r.rms_sigma:>17.2f}  {r.elpd:>8.1f}")
+        typer.echo(f"wrote {out}/refine.json, refine.md, refine.png")

@@ -1,0 +1,306 @@
+"""Which effect is missing: score-test every candidate, confirm the best few by refitting.
+
+1. Candidates (``candidates.py``): library effects that could act and are absent, on every
+   target, plus sensor faults per observation.
+2. Score tests (``score.py``) at the posterior median with all candidates switched off, in
+   one augmented model: one forward-mode Jacobian for all of them.
+3. The best ``confirm`` physical candidates are refitted with the effect added; they are
+   compared by PSIS-LOO (arviz), leave-future-out log predictive density (fit on the first
+   70% of the recording, predict the rest) and residual RMS in noise units.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import arviz as az
+import numpy as np
+
+from .. import io
+from ..errors import ModelError
+from ..syntax import edit, loads
+from .candidates import Candidate, physics_candidates, sensor_candidates
+from .score import ScoreResult, jacobian, project_out, score_test, sensor_columns
+from .workflow import noise_unknowns, point_estimate, posterior_draws
+
+LFO_FRACTION = 0.7
+
+
+@dataclass
+class Ranked:
+    rank: int
+    kind: str
+    effect: str
+    target: str
+    statistic: float
+    p_value: float
+    dof: int
+    z: float | None = None
+    estimate: float | None = None
+    confirmed: bool | None = None
+    delta_elpd: float | None = None
+    delta_elpd_se: float | None = None
+    delta_lfo: float | None = None
+    rms_before: float | None = None
+    rms_after: float | None = None
+    fitted: dict | None = None
+    snippet: str | None = None
+    note: str = ""
+
+
+@dataclass
+class Diagnosis:
+    ranking: list[Ranked]
+    verdict: str
+    winner: Ranked | None
+    rms_sigma: float
+    seconds: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return _clean({"verdict": self.verdict, "rms_sigma": self.rms_sigma,
+                       "winner": asdict(self.winner) if self.winner else None,
+                       "ranking": [asdict(r) for r in self.ranking], "seconds": self.seconds})
+
+    def table(self) -> str:
+        head = (f"{'#':>2} {'candidate':<34} {'score':>9} {'p-value':>9} "
+                f"{'ΔELPD ± se':>16} {'RMS before → after':>20}")
+        lines = [head, "-" * len(head)]
+        for r in self.ranking:
+            de = (f"{r.delta_elpd:+.1f} ± {r.delta_elpd_se:.1f}" if r.delta_elpd is not None else "")
+            rms = (f"{r.rms_before:.2f}σ → {r.rms_after:.2f}σ" if r.rms_after is not None else "")
+            name = f"{r.effect} on {r.target}" if r.kind == "effect" else f"sensor {r.effect} on {r.target}"
+            lines.append(f"{r.rank:>2} {name:<34} {r.statistic:>9.1f} {r.p_value:>9.2g} {de:>16} {rms:>20}")
+        return "\n".join(lines)
+
+
+def _clean(obj):
+    if isinstance(obj, dict):
+        return {k: _clean(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_clean(v) for v in obj]
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if np.isfinite(obj) else None
+    if isinstance(obj, np.ndarray):
+        return _clean(obj.tolist())
+    return obj
+
+
+def prior_text(prior) -> str:
+    """.phys text of a library prior (SI numbers, so no units are needed)."""
+    from ..expr import constant_value
+
+    args = [_num(constant_value(a)) for a in prior.args]
+    args += [f"{k}: {_num(constant_value(v))}" for k, v in prior.kwargs]
+    return f"~ {prior.dist}({', '.join(args)})"
+
+
+def _num(v) -> str:
+    v = np.asarray(v)
+    if v.ndim == 0:
+        return f"{float(v):.6g}"
+    return "(" + ", ".join(f"{float(x):.6g}" for x in v.ravel()) + ")"
+
+
+def strength_name(scene, cand: Candidate) -> str:
+    return scene.effect_library[cand.name].strength.name
+
+
+def with_effect(scene, cand: Candidate) -> str:
+    """The scene's text with candidate ``cand`` added, its strength an unknown with the library prior."""
+    decl = scene.effect_library[cand.name]
+    params = {decl.strength.name: prior_text(decl.strength.prior)}
+    params.update(dict(cand.params))
+    return edit.add_effect(scene.source, cand.name, cand.phys_target(), params,
+                           filename=str(scene.path or "<string>"))
+
+
+def _load_text(scene, text):
+    base = Path(scene.path).parent if scene.path else Path.cwd()
+    return loads(text, filename=str(scene.path or "<string>"), base_dir=base)
+
+
+def unknown_key(scene, cand: Candidate) -> str:
+    return f"{cand.key}.{strength_name(scene, cand)}"
+
+
+def score_all(model, idata) -> list[tuple[Candidate, ScoreResult]]:
+    """Score test of every candidate at the posterior median (one augmented model)."""
+    from ..compile import Model
+
+    scene = model.scene
+    cands = physics_candidates(scene)
+    text = scene.source
+    usable = []
+    for c in cands:
+        try:
+            trial = edit.add_effect(text, c.name, c.phys_target(),
+                                    {**{strength_name(scene, c): prior_text(scene.effect_library[c.name].strength.prior)},
+                                     **dict(c.params)}, filename=str(scene.path or "<string>"))
+            text = trial
+            usable.append(c)
+        except Exception:  # noqa: BLE001 - a candidate the language cannot express is skipped
+            continue
+    aug = Model(_load_text(scene, text))
+    values = point_estimate(posterior_draws(model, idata))
+    nuisance = [u.name for u in model.unknowns if u.name not in noise_unknowns(model)]
+    tested = [unknown_key(scene, c) for c in usable]
+    for c, key in zip(usable, tested):
+        decl = scene.effect_library[c.name]
+        shape = aug.scene.unknown(key).shape
+        values[key] = np.full(shape, decl.strength.off if decl.strength.off is not None else 0.0)
+    r, J_theta, J_psi, _ = jacobian(aug, values, nuisance, tested)
+    results = []
+    sizes = {k: int(np.prod(aug.scene.unknown(k).shape)) for k in tested}
+    offset = 0
+    starts = {}
+    for k in sorted(tested):  # ravel_pytree orders dict keys
+        starts[k] = offset
+        offset += sizes[k]
+    for c, key in zip(usable, tested):
+        cols = project_out(J_theta, J_psi[:, starts[key]: starts[key] + sizes[key]])
+        sign = scene.effect_library[c.name].strength.sign if sizes[key] == 1 else 0
+        results.append((c, score_test(c.key, r, cols, sign)))
+    for c in sensor_candidates(scene):
+        cols = project_out(J_theta, sensor_columns(aug, values, c.name, c.target[0]))
+        results.append((c, score_test(c.key, r, cols, 0)))
+    results.sort(key=lambda cr: (cr[1].p_value, -cr[1].statistic))
+    return results
+
+
+def combined_loo(idata):
+    """PSIS-LOO over every measurement time of every observation (pointwise values kept)."""
+    ll = idata.log_likelihood
+    arrays = [np.asarray(ll[v].values) for v in ll.data_vars]
+    stacked = np.concatenate([a.reshape(a.shape[0], a.shape[1], -1) for a in arrays], axis=2)
+    data = az.from_dict(log_likelihood={"all": stacked})
+    return az.loo(data, pointwise=True)
+
+
+def lfo_score(model, idata_cut, cutoff: float) -> float:
+    """Log predictive density of the measurements after ``cutoff`` given a fit before it."""
+    from ..infer.output import pointwise_log_likelihood
+
+    draws = posterior_draws(model, idata_cut, max_draws=100)
+    import jax.numpy as jnp
+
+    ll = pointwise_log_likelihood(model, {k: jnp.asarray(v) for k, v in draws.items()})
+    total = 0.0
+    for o in model.observed:
+        late = o.obs.times > cutoff
+        x = ll[o.obs.name][:, late]
+        m = x.max(axis=0)
+        total += float(np.sum(m + np.log(np.mean(np.exp(x - m), axis=0))))
+    return total
+
+
+def quick_fit(model, seed: int = 0):
+    """A fast posterior for comparisons: MAP from two prior draws with a Laplace approximation."""
+    return model.infer(backend="map", chains=2, warmup=300, samples=200, seed=seed,
+                       progress=False)
+
+
+def confirm(model, idata, ranked: list[Ranked], cands: dict, k: int, base_rms: float) -> None:
+    """Refit the best ``k`` physical candidates with the effect added; fill the comparison fields."""
+    from ..compile import Model
+    from .workflow import check_model
+
+    base_loo = combined_loo(idata)
+    times = np.concatenate([o.obs.times for o in model.observed])
+    cutoff = float(times.min() + LFO_FRACTION * (times.max() - times.min()))
+    base_cut = quick_fit(Model(model.scene, until=cutoff))
+    base_lfo = lfo_score(model, base_cut, cutoff)
+    done = 0
+    for r in ranked:
+        if r.kind != "effect" or done >= k:
+            continue
+        done += 1
+        cand = cands[r.effect + "@" + r.target]
+        text = with_effect(model.scene, cand)
+        try:
+            new = Model(_load_text(model.scene, text))
+            fit = quick_fit(new)
+        except ModelError as err:
+            r.note = f"refit failed: {err.message}"
+            r.confirmed = False
+            continue
+        rep = check_model(new, fit)
+        new_loo = combined_loo(fit)
+        diff = np.asarray(new_loo.loo_i) - np.asarray(base_loo.loo_i)
+        r.delta_elpd = float(diff.sum())
+        r.delta_elpd_se = float(np.sqrt(len(diff)) * diff.std())
+        new_cut = quick_fit(Model(new.scene, until=cutoff))
+        r.delta_lfo = lfo_score(new, new_cut, cutoff) - base_lfo
+        r.rms_before, r.rms_after = base_rms, float(rep.rms_sigma)
+        key = unknown_key(model.scene, cand)
+        r.fitted = {"name": key, "median": float(np.median(fit.posterior[key].values)),
+                    "q5": float(np.quantile(fit.posterior[key].values, 0.05)),
+                    "q95": float(np.quantile(fit.posterior[key].values, 0.95))}
+        r.snippet = _snippet(model.scene.source, text)
+        r.confirmed = bool(r.delta_elpd > 2 * max(r.delta_elpd_se, 1.0) and r.delta_lfo > 0
+                           and r.rms_after < 0.9 * base_rms)
+
+
+def _snippet(before: str, after: str) -> str:
+    """The lines ``after`` adds to ``before`` (the .phys text to paste)."""
+    import difflib
+
+    added = [ln[1:] for ln in difflib.ndiff(before.splitlines(), after.splitlines())
+             if ln.startswith("+ ")]
+    return "\n".join(added).strip("\n")
+
+
+def diagnose(model, idata, *, confirm_top: int = 3, alpha: float = 0.05, outdir=None,
+             check_report=None) -> Diagnosis:
+    """Rank candidate missing effects by evidence; confirm the best by refitting."""
+    from .workflow import check_model
+
+    t0 = time.perf_counter()
+    report = check_report or check_model(model, idata)
+    scored = score_all(model, idata)
+    t1 = time.perf_counter()
+    ranked, cands = [], {}
+    for i, (c, s) in enumerate(scored, start=1):
+        cands[c.key] = c
+        ranked.append(Ranked(i, c.kind, c.name, ",".join(c.target), s.statistic, s.p_value, s.dof,
+                             s.z, s.estimate, note="" if s.information > 0 else
+                             "the measurements cannot see this effect"))
+    n_tests = max(len(ranked), 1)
+    significant = [r for r in ranked if r.p_value < alpha / n_tests]
+    winner = None
+    if significant and confirm_top > 0:
+        confirm(model, idata, ranked, cands, confirm_top, float(report.rms_sigma))
+        confirmed = [r for r in ranked if r.confirmed]
+        if confirmed:
+            winner = max(confirmed, key=lambda r: r.delta_elpd)
+    t2 = time.perf_counter()
+    top = ranked[0] if ranked else None
+    if winner is not None:
+        verdict = (f"missing effect: {winner.effect} on {winner.target} (score p = {winner.p_value:.2g}; "
+                   f"ΔELPD {winner.delta_elpd:+.1f} ± {winner.delta_elpd_se:.1f}; residual RMS "
+                   f"{winner.rms_before:.2f}σ → {winner.rms_after:.2f}σ)")
+    elif top is not None and top.kind == "sensor" and top.p_value < alpha / n_tests:
+        verdict = (f"the misfit looks like a sensor fault: {top.effect} on {top.target} "
+                   f"(p = {top.p_value:.2g}), not a missing physical effect")
+    elif report.consistent:
+        verdict = "no missing effect: the residuals are consistent with the noise"
+    else:
+        where = "; ".join(f.message for f in report.flags[:3])
+        verdict = ("nothing in the library explains the misfit"
+                   + (f"; where and how the model fails: {where}" if where else ""))
+    diag = Diagnosis(ranked, verdict, winner, float(report.rms_sigma),
+                     {"score_tests": t1 - t0, "confirmation": t2 - t1})
+    if outdir is not None:
+        out = io.prepare_outdir(outdir, force=True)
+        io.write_json(out / "diagnosis.json", diag.to_dict())
+        io.write_text(out / "diagnosis.md", _markdown(diag))
+        if winner is not None and winner.snippet:
+            io.write_text(out / "fix.phys", winner.snippet + "\n")
+    return diag
+
+
+def _markdown(d: Diagnosis) -> str:
+    lines = ["# Diagnosis", "", d.verdict, "", "```", d.table(), "```"]
+    if d.winner and d.winner.snippet:
+        lines += ["", "Add to the scene:", "", "```", d.winner.snippet, "```"]
+    return "\n".join(lines) + "\n"

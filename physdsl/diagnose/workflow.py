@@ -1,0 +1,107 @@
+"""From a compiled Model and its posterior to the arrays ``check`` reads (ObservableFit)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..compile import PRED_PREFIX
+from ..expr import references
+from ..observe import trajectory
+from .check import Report, check
+from .residuals import ObservableFit
+
+MAX_DRAWS = 200
+
+
+def posterior_draws(model, idata, max_draws: int = MAX_DRAWS) -> dict[str, np.ndarray]:
+    """Up to ``max_draws`` joint draws of every unknown: name -> (S, *shape), evenly thinned."""
+    post = idata.posterior
+    out = {}
+    for u in model.unknowns:
+        arr = np.asarray(post[u.name].values)
+        arr = arr.reshape(-1, *arr.shape[2:])
+        step = max(1, arr.shape[0] // max_draws)
+        out[u.name] = arr[::step][:max_draws]
+    return out
+
+
+def point_estimate(draws: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Posterior median of every unknown (component-wise): the values the model is judged at."""
+    return {k: np.median(v, axis=0) for k, v in draws.items()}
+
+
+def noise_unknowns(model) -> set[str]:
+    """Names of unknowns that only set measurement noise (nuisance for physics diagnosis)."""
+    names: set[str] = set()
+    for o in model.scene.observations:
+        names |= references(o.noise.scale)
+        if o.noise.df is not None:
+            names |= references(o.noise.df)
+    return names
+
+
+def events(model, rollout) -> tuple[float, ...]:
+    """Times at which a contact starts in ``rollout`` (normal force switches on)."""
+    cf = np.asarray(getattr(rollout, "contact_force", np.zeros((len(rollout.t), 0))))
+    if cf.size == 0:
+        return ()
+    on = (cf > 1e-9).any(axis=1)
+    starts = np.nonzero(on[1:] & ~on[:-1])[0] + 1
+    return tuple(float(rollout.t[i]) for i in starts)
+
+
+def observable_fits(model, idata, max_draws: int = MAX_DRAWS) -> list[ObservableFit]:
+    """One ObservableFit per trajectory observation, from posterior-predictive draws."""
+    draws = posterior_draws(model, idata, max_draws)
+    values = point_estimate(draws)
+    rollout = jax.jit(model.simulate)(values)
+    evs = events(model, rollout)
+    pp = idata.posterior_predictive
+    fits = []
+    n = len(next(iter(draws.values()))) if draws else 1
+    for o in model.observed:
+        obs = o.obs
+        pred = np.asarray(pp[PRED_PREFIX + obs.name].values)
+        pred = pred.reshape(-1, *pred.shape[2:])
+        step = max(1, pred.shape[0] // max_draws)
+        pred = pred[::step][:max_draws]
+        sig = np.stack([np.asarray(model.noise_scale(obs, {k: v[i] for k, v in draws.items()}))
+                        for i in range(min(n, len(pred)))]) if draws else \
+            np.asarray(model.noise_scale(obs, {}))[None]
+        measured = obs.values
+        mask = o.mask
+        if obs.quantity == "orientation":
+            measured = np.asarray(trajectory.rotation_vector(jnp.asarray(o.measured)))
+            pred = np.asarray(trajectory.rotation_vector(jnp.asarray(pred)))
+        speed = None
+        if obs.quantity == "position":
+            vel = np.asarray(rollout.body_vel[:, model.simulator.body_names.index(obs.target)])
+            speed_track = np.linalg.norm(vel, axis=1)
+            speed = np.interp(obs.times, np.asarray(rollout.t), speed_track)
+        elif obs.quantity == "angle":
+            rate = np.asarray(rollout.joint_vel[:, model.simulator.joint_names.index(obs.target)])
+            speed = np.interp(obs.times, np.asarray(rollout.t), np.abs(rate))
+        fits.append(ObservableFit(
+            name=obs.name, axes=trajectory.axes(obs.quantity), unit=_unit(obs.quantity),
+            times=obs.times, measured=np.where(mask, measured, np.nan), mask=mask,
+            predicted=pred[: len(sig)], noise_sigma=sig, speed=speed, events=evs))
+    return fits
+
+
+def _unit(quantity: str) -> str:
+    return {"position": "m", "velocity": "m/s", "angular_velocity": "rad/s",
+            "orientation": "rad", "angle": "rad", "angular_rate": "rad/s"}[quantity]
+
+
+def check_model(model, idata, outdir: Path | None = None, windows: int = 4) -> Report:
+    """Posterior-predictive check of ``model`` against its measurements (writes a report if asked)."""
+    fits = observable_fits(model, idata)
+    report = check(fits, windows=windows)
+    if outdir is not None:
+        from .report import write_report
+
+        write_report(report, fits, Path(outdir))
+    return report
