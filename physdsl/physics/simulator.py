@@ -103,8 +103,15 @@ class Simulator:
 
     def simulate(self, values) -> Rollout:
         """Roll the scene out from t = 0 to the last recorded time for the unknowns' ``values``."""
-        values = {k: jnp.asarray(v) for k, v in dict(values).items()}
-        return self._jit(values)
+        return self._jit({k: _canonical(v) for k, v in dict(values).items()})
+
+
+def _canonical(x):
+    """Floats as strong-typed default-float arrays, so 0.5 and jnp.float64(0.5) share one compile."""
+    a = jnp.asarray(x)
+    if jnp.issubdtype(a.dtype, jnp.floating) or jnp.issubdtype(a.dtype, jnp.integer) and a.ndim > 0:
+        return jnp.asarray(a, dtype=jnp.result_type(float))
+    return a
 
 
 def build_simulator(scene: Scene) -> Simulator:
