@@ -162,6 +162,14 @@ class Model:
             res = jnp.where(o.mask, res, 0.0)
             noise = self.noise_distribution(o.obs, values, jnp.zeros_like(res))
             numpyro.sample(OBS_PREFIX + o.obs.name, noise.mask(jnp.asarray(o.mask)), obs=res)
+        for obs in self.images:
+            numpyro.factor(OBS_PREFIX + obs.name, self.image_log_likelihood(obs, rollout, values))
+
+    def image_log_likelihood(self, obs: Observation, rollout, values):
+        """Log-likelihood of one camera's frames given the rollout (see physdsl.observe.image)."""
+        from .observe.image import scene_image_log_likelihood
+
+        return scene_image_log_likelihood(self, obs, rollout, values)
 
     def log_likelihood(self, values):
         """Total log-likelihood of all trajectory measurements at ``values`` (scalar)."""
