@@ -97,7 +97,6 @@ _BASE_UNITS: dict[str, tuple[float, Dim]] = {
     "W": (1.0, Dim.of(kg=1, m=2, s=-3)),
     "Pa": (1.0, Dim.of(kg=1, m=-1, s=-2)),
     "Hz": (1.0, Dim.of(s=-1)),
-    "L": (1e-3, Dim.of(m=3)),
 }
 # units that take no prefix
 _PLAIN_UNITS: dict[str, tuple[float, Dim]] = {
