@@ -30,7 +30,9 @@ class Dim:
         return Dim(tuple(a - b for a, b in zip(self.exps, other.exps)))
 
     def __pow__(self, k) -> "Dim":
-        k = Fraction(k).limit_denominator(1000)
+        if k == 1:
+            return self
+        k = Fraction(int(k)) if float(k).is_integer() else Fraction(k).limit_denominator(1000)
         return Dim(tuple(a * k for a in self.exps))
 
     def same(self, other: "Dim") -> bool:
