@@ -53,7 +53,7 @@ def _interior_point(A, q, settings: IPSettings):
     m = q.shape[0]
     a_scale, q_scale = _scales(A, q)
     An, qn = A / a_scale, q / q_scale  # z = zn q_scale / a_scale, w = wn q_scale
-    floor = settings.floor
+    floor = max(settings.floor, 1e-2 * float(jnp.finfo(An.dtype).eps))  # float32: 1.2e-9
 
     def body(_, zw):
         z, w = zw

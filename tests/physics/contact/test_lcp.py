@@ -229,3 +229,31 @@ def test_implicit_gradients_match_finite_differences_and_unrolling():
         gu = grad_unrolled(th, p)
         for k in th:
             np.testing.assert_allclose(g[k], gu[k], rtol=1e-5, atol=1e-8)
+
+
+def box_rows(half, normal_points):
+    """Contact rows of a free box (v = (linear, angular) at its centre) at world offsets r."""
+    rows_n, rows_t = [], []
+    for r in normal_points:
+        rx = np.array([[0, -r[2], r[1]], [r[2], 0, -r[0]], [-r[1], r[0], 0]])
+        Jp = np.hstack([np.eye(3), -rx])  # velocity of the point: v + w x r
+        rows_n.append(Jp[2])
+        rows_t.append(np.stack([Jp[0], -Jp[0], Jp[1], -Jp[1]]))
+    return jnp.asarray(np.array(rows_n)), jnp.asarray(np.array(rows_t))
+
+
+def test_box_resting_on_four_redundant_corners():
+    # 4 coplanar contacts on 6 DOF: the normal impulses are not unique, the velocity is
+    m, a = 3.0, 0.1
+    corners = [(sx * a, sy * a, -a) for sx in (-1, 1) for sy in (-1, 1)]
+    Jn, Jt = box_rows(a, corners)
+    M = jnp.diag(jnp.array([m, m, m] + [m * (2 * a) ** 2 / 6] * 3))
+    for vx in (0.0, 0.3):  # resting, and sliding (mu m g h removes mu g h of speed)
+        v_free = jnp.array([vx, 0, -G * H, 0, 0, 0])
+        f = jax.jit(lambda vf: solve_lcp_step(M, vf, Jn, Jt, jnp.full(4, 0.4), jnp.zeros(4),
+                                              jnp.zeros(4), jnp.zeros(4), jnp.ones(4, bool), H))
+        v, lam_n, lam_t = f(v_free)
+        np.testing.assert_allclose(v[2:], 0.0, atol=1e-9)
+        np.testing.assert_allclose(v[0], max(vx - 0.4 * G * H, 0.0), atol=1e-9)
+        np.testing.assert_allclose(jnp.sum(lam_n), m * G * H, rtol=1e-9)
+        assert np.all(np.isfinite(np.asarray(jax.jacrev(lambda x: f(x)[0])(v_free))))
