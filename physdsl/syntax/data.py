@@ -146,3 +146,18 @@ def read_image_times(base: Path, pattern: str, rate: float | None, times_file: P
         raise DataError(f"{len(t)} times for {len(frames)} frames", times_file, span=span,
                         hint="one time per frame file, in sorted order")
     return frames, t
+
+
+def first_row(path: Path, column: str, value: str) -> int | None:
+    """1-based row number (header = 1) of the first row whose ``column`` equals ``value``."""
+    try:
+        header, rows = _rows(path, None)
+    except DataError:
+        return None
+    if column not in header:
+        return None
+    i = header.index(column)
+    for n, row in enumerate(rows, start=2):
+        if i < len(row) and row[i].strip() == value:
+            return n
+    return None

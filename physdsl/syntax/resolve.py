@@ -20,7 +20,7 @@ from ..errors import (DataError, PhysError, PhysErrors, PhysNameError, PhysStruc
 from ..scene import (DH, Body, Camera, EffectDecl, EffectParam, EffectUse, Joint, Light, Material,
                      Noise, Prior, Scene, Shape, Unknown, World)
 from . import ast, dists
-from .data import read_control, read_image_times, read_observation
+from .data import first_row, read_control, read_image_times, read_observation
 from .library import load_library
 from .units import (ANGLE, DIMLESS, LENGTH, MASS, TIME, Dim, UnitError, known_units, lookup,
                     parse_unit)
@@ -1289,6 +1289,14 @@ class Resolver:
         if item.rate is not None or item.times is not None:
             raise self.err(PhysStructureError, "'at' and 'times' are for image observations; "
                            "a CSV file has its own column t", item.span)
+        if item.where is not None and item.where[0] in ("body", "joint"):
+            names = self.body_index if item.where[0] == "body" else self.joint_index
+            row = first_row(file, *item.where)
+            if item.where[1] not in names and row is not None:
+                raise DataError(f"'{item.where[1]}' is not a {item.where[0]} of the scene"
+                                f"{close(item.where[1], names)}", file, row=row,
+                                column=item.where[0], span=item.span,
+                                hint=f"observe the {item.where[0]} the scene calls '{t}'?")
         times, values, mask = read_observation(file, cols, item.where, item.span)
         return Observation_(name, t, q, file, times, values, mask, tuple(cols), noise, (), item.span)
 
