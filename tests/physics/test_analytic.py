@@ -15,7 +15,8 @@ from scenes import c, chain, effect, gravity, pendulum, scene, sphere
 X0, V0, M = np.array([0.0, 0.0, 1.0]), np.array([3.0, 1.0, 5.0]), 0.5
 
 
-@pytest.mark.parametrize("integrator,tol", [("rk4", 1e-10), ("semi_implicit_euler", 6e-3)])
+@pytest.mark.parametrize("integrator,tol", [("rk4", 1e-10),
+                                            pytest.param("semi_implicit_euler", 6e-3, marks=pytest.mark.slow)])
 def test_projectile(integrator, tol):
     s = scene([sphere("ball", mass=M, pos=X0, vel=V0)], effects=[gravity()], duration=1.0,
               dt=1e-3, integrator=integrator)
@@ -62,7 +63,7 @@ def energy(model, prm, q, v):
     return 0.5 * v @ Mq @ v + pe
 
 
-@pytest.mark.parametrize("dt,tol", [(1e-3, 1e-7), (1e-2, 1e-3)])
+@pytest.mark.parametrize("dt,tol", [(1e-3, 1e-7), pytest.param(1e-2, 1e-3, marks=pytest.mark.slow)])
 def test_double_pendulum_energy_rk4(dt, tol):
     """Undamped double pendulum from 90 and 45 degrees for 2 s: relative energy drift < tol."""
     s = chain(2, link=0.5, mass=1.0, r=0.03, angles=[np.pi / 2, np.pi / 4], dt=dt, duration=2.0)

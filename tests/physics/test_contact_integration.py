@@ -18,7 +18,7 @@ def apexes(z):
     return z[i]
 
 
-@pytest.mark.parametrize("model", ["lcp", "compliant"])
+@pytest.mark.parametrize("model", ["lcp", pytest.param("compliant", marks=pytest.mark.slow)])
 def test_bounce_heights_decay_by_e_squared(model):
     e_, r, z0 = 0.8, 0.05, 1.0
     s = scene([floor(), sphere("ball", r, 0.06, (0, 0, z0))], effects=[
@@ -46,7 +46,8 @@ def slope_scene(theta, mu, duration=0.5):
         contact_pairs=[("floor", "block")], dt=1e-3, duration=duration)
 
 
-@pytest.mark.parametrize("theta,mu", [(np.deg2rad(20), 0.5), (np.deg2rad(30), 0.3)])
+@pytest.mark.parametrize("theta,mu", [pytest.param(np.deg2rad(20), 0.5, marks=pytest.mark.slow),
+                                      (np.deg2rad(30), 0.3)])
 def test_block_on_slope(theta, mu):
     out = build_simulator(slope_scene(theta, mu)).simulate({})
     x = np.asarray(out.body_pos[:, 1])

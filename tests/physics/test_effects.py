@@ -75,6 +75,16 @@ def _ctx(model, prm, kin, state):
 
 @pytest.mark.parametrize("name", sorted(CASES))
 def test_effect_off_is_absent_and_differentiable(name):
+    check_effect(name, fd=False)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_effect_gradient_at_off_matches_finite_differences(name):
+    check_effect(name, fd=True)
+
+
+def check_effect(name, fd):
     use, off, on = use_for(name)
     s = base([use])
     k = len(s.effects) - 1
@@ -89,6 +99,8 @@ def test_effect_off_is_absent_and_differentiable(name):
         assert np.abs(np.asarray(t_on)).max() > 1e-6  # and it does something when on
     J = jax.jacfwd(f)(jnp.asarray(off, float))
     assert np.all(np.isfinite(np.asarray(J)))
+    if not fd:
+        return
     # gradient at the off value matches central finite differences
     x0 = np.asarray(off, float)
     eps = 1e-6 * max(1.0, float(np.abs(on).max()))

@@ -132,6 +132,7 @@ def test_jit_vmap_grad_and_no_recompile():
     assert np.isfinite(float(g)) and float(g) != 0.0
 
 
+@pytest.mark.slow
 def test_contact_gradient_compliant():
     """d(final height)/d(restitution) of a compliant bounce, against finite differences."""
     from physdsl.scene import Body, Shape

@@ -88,6 +88,7 @@ def test_cart_pole_force_sequence():
     assert np.abs(Q[:, 0]).max() > 0.1
 
 
+@pytest.mark.slow
 def test_double_pendulum():
     """Two capsule links from 60 and -30 degrees. Chaos amplifies round-off by ~e^(lambda t): over
     3 s the angles agree within 1e-6 rad; beyond ~10 s comparison loses meaning."""
@@ -126,6 +127,7 @@ def test_spring_mass_damper_tendon():
     assert np.ptp(Q[:, 0]) > 0.1
 
 
+@pytest.mark.slow
 def test_free_box_tumbling():
     """Torque-free asymmetric box spun near its unstable intermediate axis (gyroscopic bias terms):
     it flips within 1.5 s, which amplifies round-off; orientations agree within 1e-5."""
