@@ -248,12 +248,13 @@ def test_box_resting_on_four_redundant_corners():
     corners = [(sx * a, sy * a, -a) for sx in (-1, 1) for sy in (-1, 1)]
     Jn, Jt = box_rows(a, corners)
     M = jnp.diag(jnp.array([m, m, m] + [m * (2 * a) ** 2 / 6] * 3))
+    f = jax.jit(lambda vf: solve_lcp_step(M, vf, Jn, Jt, jnp.full(4, 0.4), jnp.zeros(4),
+                                          jnp.zeros(4), jnp.zeros(4), jnp.ones(4, bool), H))
+    jac = jax.jit(jax.jacrev(lambda x: f(x)[0]))
     for vx in (0.0, 0.3):  # resting, and sliding (mu m g h removes mu g h of speed)
         v_free = jnp.array([vx, 0, -G * H, 0, 0, 0])
-        f = jax.jit(lambda vf: solve_lcp_step(M, vf, Jn, Jt, jnp.full(4, 0.4), jnp.zeros(4),
-                                              jnp.zeros(4), jnp.zeros(4), jnp.ones(4, bool), H))
         v, lam_n, lam_t = f(v_free)
         np.testing.assert_allclose(v[2:], 0.0, atol=1e-9)
         np.testing.assert_allclose(v[0], max(vx - 0.4 * G * H, 0.0), atol=1e-9)
         np.testing.assert_allclose(jnp.sum(lam_n), m * G * H, rtol=1e-9)
-        assert np.all(np.isfinite(np.asarray(jax.jacrev(lambda x: f(x)[0])(v_free))))
+        assert np.all(np.isfinite(np.asarray(jac(v_free))))
