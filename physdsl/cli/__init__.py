@@ -45,7 +45,15 @@ def _root(
     """physdsl: describe a physical scene, fit it to measurements, find what it misses."""
 
 
+_registered = False
+
+
 def _register_commands() -> None:
+    """Attach every subcommand module once (main may be called many times in one process)."""
+    global _registered
+    if _registered:
+        return
+    _registered = True
     for name in COMMAND_MODULES:
         module_name = f"{__name__}.{name}"
         if importlib.util.find_spec(module_name) is not None:

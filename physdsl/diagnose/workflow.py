@@ -3,7 +3,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -57,7 +56,7 @@ def observable_fits(model, idata, max_draws: int = MAX_DRAWS) -> list[Observable
     """One ObservableFit per trajectory observation, from posterior-predictive draws."""
     draws = posterior_draws(model, idata, max_draws)
     values = point_estimate(draws)
-    rollout = jax.jit(model.simulate)(values)
+    rollout = model.simulate(values)
     evs = events(model, rollout)
     pp = idata.posterior_predictive
     fits = []

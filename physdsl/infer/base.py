@@ -41,6 +41,7 @@ class Problem(NamedTuple):
     to_constrained: Callable[[jax.Array], dict]  # flat -> {site: constrained value}
     dim: int
     model: Any  # the compiled Model (for backends that need the program itself)
+    cache: dict  # compiled functions shared by stages (e.g. the jitted value and gradient)
 
 
 class Backend:

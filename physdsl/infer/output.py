@@ -17,26 +17,33 @@ from ..observe import trajectory
 
 
 def build_inference_data(model, problem, flat: np.ndarray, stats: dict, settings) -> az.InferenceData:
-    """InferenceData with posterior (unknowns), predictive, observed data and pointwise log-lik."""
+    """InferenceData with posterior (unknowns), predictive, observed data and pointwise log-lik.
+
+    One jitted pass per draw: numpyro's postprocessing runs the program once (constrained
+    values and the ``pred:`` deterministic sites), and the log-likelihood is read off those
+    predictions, so the physics is rolled out once per draw.
+    """
     chains, samples, _ = flat.shape
-    to_c = jax.jit(jax.vmap(problem.to_constrained))
-    constrained = to_c(jnp.asarray(flat.reshape(chains * samples, -1)))
+
+    def one(x):
+        c = problem.to_constrained(x)
+        values = {k: c[k] for k in model.unknown_names}
+        preds = {o.obs.name: c[PRED_PREFIX + o.obs.name] for o in model.observed}
+        return c, pointwise_from_predictions(model, values, preds)
+
+    constrained, loglik = jax.jit(jax.vmap(one))(jnp.asarray(flat.reshape(chains * samples, -1)))
     unknowns = set(model.unknown_names)
-    posterior = {k: np.asarray(v).reshape(chains, samples, *v.shape[1:])
-                 for k, v in constrained.items() if k in unknowns}
-    preds = {k: np.asarray(v).reshape(chains, samples, *v.shape[1:])
-             for k, v in constrained.items() if k.startswith(PRED_PREFIX)}
-    loglik = pointwise_log_likelihood(model, {k: jnp.asarray(v).reshape(chains * samples, *v.shape[2:])
-                                              for k, v in posterior.items()})
-    loglik = {OBS_PREFIX + k: v.reshape(chains, samples, *v.shape[1:]) for k, v in loglik.items()}
-    observed = {OBS_PREFIX + o.obs.name: np.where(o.obs.mask, o.obs.values, np.nan) for o in model.observed}
+    shaped = lambda v: np.asarray(v).reshape(chains, samples, *v.shape[1:])  # noqa: E731
+    posterior = {k: shaped(v) for k, v in constrained.items() if k in unknowns}
+    preds = {k: shaped(v) for k, v in constrained.items() if k.startswith(PRED_PREFIX)}
+    loglik = {OBS_PREFIX + k: shaped(v) for k, v in loglik.items()}
+    observed = {OBS_PREFIX + o.obs.name: np.where(o.obs.mask, o.obs.values, np.nan)
+                for o in model.observed}
     sample_stats = {k: np.asarray(v) for k, v in stats.items()}
-    if "log_density" not in sample_stats:
-        lp = jax.jit(jax.vmap(problem.logdensity))(jnp.asarray(flat.reshape(chains * samples, -1)))
-        sample_stats["lp"] = np.asarray(lp).reshape(chains, samples)
     dims, coords = _dims(model, posterior)
     return az.from_dict(posterior=posterior, posterior_predictive=preds, observed_data=observed,
-                        log_likelihood=loglik, sample_stats=sample_stats, dims=dims, coords=coords)
+                        log_likelihood=loglik, sample_stats=sample_stats or None, dims=dims,
+                        coords=coords)
 
 
 def _dims(model, posterior):
@@ -52,19 +59,22 @@ def _dims(model, posterior):
     return dims, coords
 
 
+def pointwise_from_predictions(model, values, preds) -> dict:
+    """Log-likelihood per measurement time (axes summed) given predictions: name -> (N,)."""
+    out = {}
+    for o in model.observed:
+        res = trajectory.residual(o.obs.quantity, preds[o.obs.name], jnp.asarray(o.measured))
+        res = jnp.where(o.mask, res, 0.0)
+        lp = model.noise_distribution(o.obs, values, jnp.zeros_like(res)).log_prob(res)
+        out[o.obs.name] = jnp.sum(jnp.where(o.mask, lp, 0.0), axis=-1)
+    return out
+
+
 def pointwise_log_likelihood(model, values: dict) -> dict[str, np.ndarray]:
-    """Log-likelihood per draw and measurement time (axes summed): name -> (draws, N)."""
+    """Log-likelihood per draw and measurement time: name -> (draws, N)."""
     def one(vals):
-        pred = model.predict(vals)
-        out = {}
-        for o in model.observed:
-            res = trajectory.residual(o.obs.quantity, pred[o.obs.name], jnp.asarray(o.measured))
-            res = jnp.where(o.mask, res, 0.0)
-            lp = model.noise_distribution(o.obs, vals, jnp.zeros_like(res)).log_prob(res)
-            out[o.obs.name] = jnp.sum(jnp.where(o.mask, lp, 0.0), axis=-1)
-        return out
-    res = jax.jit(jax.vmap(one))(values)
-    return {k: np.asarray(v) for k, v in res.items()}
+        return pointwise_from_predictions(model, vals, model.predict(vals))
+    return {k: np.asarray(v) for k, v in jax.jit(jax.vmap(one))(values).items()}
 
 
 def summary_rows(model, idata) -> list[dict]:

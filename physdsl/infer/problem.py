@@ -43,6 +43,6 @@ def make_problem(model, key, chains: int):
     def to_constrained(x):
         return postprocess_fn(unravel(x))
 
-    problem = Problem(safe_logdensity(logdensity), to_constrained, int(positions.shape[1]), model)
+    problem = Problem(safe_logdensity(logdensity), to_constrained, int(positions.shape[1]), model, {})
     return problem, positions
 

@@ -20,7 +20,7 @@ import numpy as np
 from .. import io
 from ..errors import InferenceError, UsageError
 from .base import Settings, get_backend
-from .backends.map import find_mode
+from .backends.map import find_modes
 from .problem import make_problem
 from .progress import Stages
 
@@ -43,8 +43,7 @@ def infer(model, backend: str = "nuts", settings: Settings | None = None, outdir
     with stages.stage("compile") as st:
         problem, positions = make_problem(model, k_init, settings.chains)
         if ckpt is None and settings.init_steps > 0 and algo.name != "map":
-            positions = jax.jit(jax.vmap(lambda x: find_mode(problem.logdensity, x,
-                                                             settings.init_steps)))(positions)
+            positions = find_modes(problem, positions, settings.init_steps)
         st.done(f"{problem.dim} unconstrained dimensions, {settings.chains} chains")
 
     with _graceful_termination():
