@@ -10,11 +10,12 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import jax
 import jax.numpy as jnp
 
-from .kinematics import Kin, point_jacobian
+from .kinematics import Kin
 from .model import Model
-from .spatial import normalize
+from .spatial import normalize, skew
 
 
 class Contacts(NamedTuple):
@@ -35,34 +36,52 @@ def tangents(n):
     return t1, jnp.cross(n, t1)
 
 
+def _point_jac(kin: Kin, bodies, points):
+    """(P, K, 3, nv) Jacobians of body-fixed points ``points`` (P, K, 3) on ``bodies`` (P,)."""
+    J = kin.jac[bodies]  # (P, 6, nv)
+    return J[:, None, 3:] - jnp.einsum("pkij,pjn->pkin", skew(points), J[:, :3])
+
+
 def detect_all(model: Model, prm: dict, kin: Kin) -> Contacts:
-    """Contact candidates of every pair with their Jacobians and coefficients."""
+    """Contact candidates of every pair with their Jacobians and coefficients.
+
+    Pairs of the same shape kinds are detected together (vmap), so the traced graph grows with
+    the number of kind combinations, not with the number of pairs.
+    """
     from . import contact as cm
 
-    dist, nrm, active, J, mu, e = [], [], [], [], [], []
+    C, nv = model.ncon, model.nv
+    dist = jnp.zeros(C)
+    normal = jnp.zeros((C, 3))
+    active = jnp.zeros(C, bool)
+    J = jnp.zeros((C, 3, nv))
+    mu = jnp.zeros(C)
+    e = jnp.ones(C)
+    groups: dict = {}
     for pair in model.pairs:
-        a, b = pair.a, pair.b
-        cp = cm.detect(pair.kind_a, pair.kind_b, kin.pos[a], kin.quat[a], prm["size"][a],
-                       kin.pos[b], kin.quat[b], prm["size"][b])
-        K = cp.dist.shape[0]
-        for k in range(K):
-            J.append(point_jacobian(kin, a, cp.point_a[k]) - point_jacobian(kin, b, cp.point_b[k]))
-        dist.append(cp.dist)
-        nrm.append(cp.normal)
-        active.append(cp.active)
-        fr = prm["effects"][pair.friction]["coefficient"] if pair.friction is not None else 0.0
-        re = prm["effects"][pair.restitution]["coefficient"] if pair.restitution is not None else 1.0
-        mu.append(jnp.broadcast_to(jnp.asarray(fr, dtype=float), (K,)))
-        e.append(jnp.broadcast_to(jnp.asarray(re, dtype=float), (K,)))
-    normal = jnp.concatenate(nrm)
-    J = jnp.stack(J)
+        groups.setdefault((pair.kind_a, pair.kind_b), []).append(pair)
+    for (ka, kb), pairs in groups.items():
+        ia = jnp.asarray([p.a for p in pairs])
+        ib = jnp.asarray([p.b for p in pairs])
+        rows = jnp.asarray([p.rows for p in pairs])  # (P, K)
+        cp = jax.vmap(lambda pa, qa, sa, pb, qb, sb: cm.detect(ka, kb, pa, qa, sa, pb, qb, sb))(
+            kin.pos[ia], kin.quat[ia], prm["size"][ia], kin.pos[ib], kin.quat[ib], prm["size"][ib])
+        Jrel = _point_jac(kin, ia, cp.point_a) - _point_jac(kin, ib, cp.point_b)
+        dist = dist.at[rows].set(cp.dist)
+        normal = normal.at[rows].set(cp.normal)
+        active = active.at[rows].set(cp.active)
+        J = J.at[rows].set(Jrel)
+        fr = jnp.stack([jnp.asarray(prm["effects"][p.friction]["coefficient"], dtype=float)
+                        if p.friction is not None else jnp.asarray(0.0) for p in pairs])
+        re = jnp.stack([jnp.asarray(prm["effects"][p.restitution]["coefficient"], dtype=float)
+                        if p.restitution is not None else jnp.asarray(1.0) for p in pairs])
+        mu = mu.at[rows].set(jnp.broadcast_to(fr[:, None], rows.shape))
+        e = e.at[rows].set(jnp.broadcast_to(re[:, None], rows.shape))
     Jn = jnp.einsum("ck,ckn->cn", normal, J)
-    t1, t2 = zip(*[tangents(n) for n in normal])
-    t1, t2 = jnp.stack(t1), jnp.stack(t2)
+    t1, t2 = jax.vmap(tangents)(normal)
     T = jnp.stack([t1, t2, -t1, -t2], 1)  # (C, 4, 3): polyhedral cone with 4 edges
     Jt = jnp.einsum("cfk,ckn->cfn", T, J)
-    return Contacts(jnp.concatenate(dist), normal, jnp.concatenate(active), J, Jn, Jt,
-                    jnp.concatenate(mu), jnp.concatenate(e))
+    return Contacts(dist, normal, active, J, Jn, Jt, mu, e)
 
 
 def compliant_tau(model: Model, con: Contacts, M, v):
