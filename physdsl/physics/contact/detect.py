@@ -10,9 +10,10 @@ cylindrical part along local z, 0); plane: its unit normal, with pos a point on 
 
 Exact pairs: everything against a plane, sphere-sphere, sphere-box, sphere-capsule,
 sphere-cylinder, capsule-capsule, capsule-box and capsule-cylinder (exact nearest point of the
-axis, plus both end spheres for resting support). Approximate (vertex/rim points against the
-other solid, both ways; edge-edge contacts are missed): box-box, box-cylinder,
-cylinder-cylinder.
+axis, plus both end spheres for resting support), box-box while apart (8 + 8 vertices against
+the other box and the nearest of the 144 edge pairs; penetrating edge-edge contacts are not
+resolved). Approximate (rim points against the other solid, both ways; rim-edge contacts are
+missed): box-cylinder, cylinder-cylinder.
 """
 from __future__ import annotations
 
@@ -187,9 +188,46 @@ def _both_ways(points_a, kind_a, pa, qa, sa, points_b, kind_b, pb, qb, sb):
     return tuple(jnp.concatenate([x, y]) for x, y in zip(ab, ba))
 
 
+def _box_edges(pos, quat, half):
+    """The 12 edges of a box: centres (12,3), unit directions (12,3), half lengths (12,)."""
+    R = quat_to_matrix(quat)
+    centres, dirs, lengths = [], [], []
+    for k in range(3):
+        i, j = [a for a in range(3) if a != k]
+        for si in (-1.0, 1.0):
+            for sj in (-1.0, 1.0):
+                centres.append(pos + si * half[i] * R[:, i] + sj * half[j] * R[:, j])
+                dirs.append(R[:, k])
+                lengths.append(half[k])
+    return jnp.stack(centres), jnp.stack(dirs), jnp.stack(lengths)
+
+
+def _nearest_edges(pa, qa, sa, pb, qb, sb):
+    """The closest pair among the 12 x 12 edges of two separated boxes (one candidate).
+
+    Valid only while both closest points lie outside the other box: edge-edge penetration is
+    not resolved (the speculative margin makes the LCP stop edges before they cross).
+    """
+    ca, ua, la = _box_edges(pa, qa, sa)
+    cb, ub, lb = _box_edges(pb, qb, sb)
+    seg = jax.vmap(jax.vmap(segments_closest, (None, None, None, 0, 0, 0)), (0, 0, 0, None, None, None))
+    xa, xb = seg(ca, ua, la, cb, ub, lb)  # (12, 12, 3) each
+    xa, xb = xa.reshape(-1, 3), xb.reshape(-1, 3)
+    k = jnp.argmin(jnp.sum((xa - xb) ** 2, axis=1))
+    xa, xb = xa[k], xb[k]
+    Ra, Rb = quat_to_matrix(qa), quat_to_matrix(qb)
+    axis = jnp.cross(ua[k // 12], ub[k % 12])
+    axis = safe_normalize(axis * jnp.sign(jnp.dot(axis, pa - pb) + 1e-300), safe_normalize(pa - pb, _Z))
+    n = safe_normalize(xa - xb, axis)
+    outside = ((box_closest((xa - pb) @ Rb, sb)[0] >= 0) & (box_closest((xb - pa) @ Ra, sa)[0] >= 0))
+    return safe_norm(xa - xb)[None], n[None], xa[None], xb[None], outside[None]
+
+
 def box_box(pa, qa, sa, pb, qb, sb):
-    return _both_ways(_box_corners(pa, qa, sa), "box", pa, qa, sa,
-                      _box_corners(pb, qb, sb), "box", pb, qb, sb)
+    vertices = _both_ways(_box_corners(pa, qa, sa), "box", pa, qa, sa,
+                          _box_corners(pb, qb, sb), "box", pb, qb, sb)
+    edges = _nearest_edges(pa, qa, sa, pb, qb, sb)
+    return tuple(jnp.concatenate([x, y]) for x, y in zip(vertices, edges))
 
 
 def cylinder_box(pa, qa, sa, pb, qb, sb):

@@ -208,12 +208,23 @@ def test_box_box_stacked():
     q = quat_axis([0, 0, 1], np.pi / 6)
     cp = detect("box", "box", [0.1, 0.2, 0.5 + 0.1 - 0.001], q, [0.1, 0.1, 0.1], [0, 0, 0], I,
                 [1.0, 1.0, 0.5])
-    assert cp.dist.shape == (16,)
+    assert cp.dist.shape == (17,)  # 8 + 8 vertices, the nearest edge pair
     d = np.sort(np.asarray(cp.dist))
     np.testing.assert_allclose(d[:4], -0.001, atol=1e-12)
     assert np.sum(np.asarray(cp.active)) == 4
     k = np.argsort(np.asarray(cp.dist))[:4]
     np.testing.assert_allclose(np.asarray(cp.normal)[k], np.tile(UP, (4, 1)), atol=1e-12)
+
+
+def test_box_box_crossed_edges():
+    # two long boxes turned 45 deg about x and y: their ridges cross, 0.52 - 2 (0.1 sqrt2) apart
+    cp = detect("box", "box", [0.05, 0.1, 0.52], quat_axis([1, 0, 0], np.pi / 4), [0.4, 0.1, 0.1],
+                [0, 0, 0], quat_axis([0, 1, 0], np.pi / 4), [0.1, 0.4, 0.1])
+    d, n, pa, pb = deepest(cp)
+    np.testing.assert_allclose(d, 0.52 - 0.2 * np.sqrt(2), atol=1e-12)
+    np.testing.assert_allclose(n, UP, atol=1e-12)
+    np.testing.assert_allclose(pa, [0.0, 0.1, 0.52 - 0.1 * np.sqrt(2)], atol=1e-12)
+    np.testing.assert_allclose(pb, [0.0, 0.1, 0.1 * np.sqrt(2)], atol=1e-12)
 
 
 def test_unknown_pair_is_a_model_error():
@@ -254,6 +265,8 @@ CASES = [
      [0, 0, 0], quat_axis([0, 0, 1], 0.2), [0.5, 0.5, 0.5]),
     ("sphere", "cylinder", [0.45, 0.1, 0.2], I, [0.1, 0, 0], [0, 0, 0],
      quat_axis([1, 0, 0], 0.3), [0.3, 0.4, 0]),
+    ("box", "box", [0.05, 0.1, 0.52], quat_axis([1, 0, 0], np.pi / 4), [0.4, 0.1, 0.1],
+     [0, 0, 0], quat_axis([0, 1, 0], np.pi / 4), [0.1, 0.4, 0.1]),  # crossed edges apart
 ]
 
 
@@ -279,3 +292,45 @@ def test_distance_gradients_match_finite_differences(case):
     # the gradient of a single gap w.r.t. A's position is its normal (moving A along n opens it)
     k = int(np.argmin(np.asarray(d)))
     np.testing.assert_allclose(ga[k], n[k], atol=1e-7)
+
+
+ORACLE_SIZES = {"sphere": [0.2, 0, 0], "capsule": [0.1, 0.3, 0], "cylinder": [0.15, 0.25, 0],
+                "box": [0.3, 0.2, 0.1]}
+EXACT_PAIRS = [("sphere", "sphere"), ("sphere", "box"), ("sphere", "capsule"),
+               ("sphere", "cylinder"), ("capsule", "capsule"), ("capsule", "box"),
+               ("capsule", "cylinder"), ("box", "box")]
+
+
+def _mujoco_xml(ka, kb):
+    def geom(kind, name):
+        n = {"sphere": 1, "capsule": 2, "cylinder": 2, "box": 3}[kind]
+        size = " ".join(str(x) for x in ORACLE_SIZES[kind][:n])
+        return f'<body><freejoint/><geom name="{name}" type="{kind}" size="{size}"/></body>'
+    return f"<mujoco><worldbody>{geom(ka, 'a')}{geom(kb, 'b')}</worldbody></mujoco>"
+
+
+@pytest.mark.parametrize("ka,kb", EXACT_PAIRS, ids=[f"{a}-{b}" for a, b in EXACT_PAIRS])
+def test_separation_distance_matches_mujoco(ka, kb):
+    """Random separated poses: the smallest candidate gap equals MuJoCo's mj_geomDistance."""
+    mujoco = pytest.importorskip("mujoco")
+    m = mujoco.MjModel.from_xml_string(_mujoco_xml(ka, kb))
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(7)
+    qa = rng.normal(size=(40, 4))
+    qb = rng.normal(size=(40, 4))
+    qa /= np.linalg.norm(qa, axis=1, keepdims=True)
+    qb /= np.linalg.norm(qb, axis=1, keepdims=True)
+    u = rng.normal(size=(40, 3))
+    pb = u / np.linalg.norm(u, axis=1, keepdims=True) * rng.uniform(0.3, 0.9, (40, 1))
+    ref = []
+    for i in range(40):
+        d.qpos[:] = np.r_[0, 0, 0, qa[i], pb[i], qb[i]]
+        mujoco.mj_forward(m, d)
+        ref.append(mujoco.mj_geomDistance(m, d, 0, 1, 10.0, None))
+    ref = np.array(ref)
+    sa, sb = jnp.asarray(ORACLE_SIZES[ka]), jnp.asarray(ORACLE_SIZES[kb])
+    ours = jax.jit(jax.vmap(lambda qa_, pb_, qb_: detect_eager(
+        ka, kb, jnp.zeros(3), qa_, sa, pb_, qb_, sb).dist.min()))(qa, pb, qb)
+    apart = ref > 1e-3
+    assert apart.sum() >= 15
+    np.testing.assert_allclose(np.asarray(ours)[apart], ref[apart], atol=1e-8)
