@@ -210,14 +210,16 @@ def _nearest_edges(pa, qa, sa, pb, qb, sb):
     """
     ca, ua, la = _box_edges(pa, qa, sa)
     cb, ub, lb = _box_edges(pb, qb, sb)
-    seg = jax.vmap(jax.vmap(segments_closest, (None, None, None, 0, 0, 0)), (0, 0, 0, None, None, None))
+    seg = jax.vmap(jax.vmap(segments_closest, (None, None, None, 0, 0, 0)),
+                   (0, 0, 0, None, None, None))
     xa, xb = seg(ca, ua, la, cb, ub, lb)  # (12, 12, 3) each
     xa, xb = xa.reshape(-1, 3), xb.reshape(-1, 3)
     k = jnp.argmin(jnp.sum((xa - xb) ** 2, axis=1))
     xa, xb = xa[k], xb[k]
     Ra, Rb = quat_to_matrix(qa), quat_to_matrix(qb)
     axis = jnp.cross(ua[k // 12], ub[k % 12])
-    axis = safe_normalize(axis * jnp.sign(jnp.dot(axis, pa - pb) + 1e-300), safe_normalize(pa - pb, _Z))
+    axis = jnp.where(jnp.dot(axis, pa - pb) < 0, -axis, axis)  # oriented from B towards A
+    axis = safe_normalize(axis, safe_normalize(pa - pb, _Z))
     n = safe_normalize(xa - xb, axis)
     outside = ((box_closest((xa - pb) @ Rb, sb)[0] >= 0) & (box_closest((xb - pa) @ Ra, sa)[0] >= 0))
     return safe_norm(xa - xb)[None], n[None], xa[None], xb[None], outside[None]
