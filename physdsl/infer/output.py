@@ -117,7 +117,7 @@ def warnings_in_words(rows: list[dict], idata, backend: str) -> list[str]:
         worst = min(low, key=lambda r: r["ess_bulk"])
         out.append(f"bulk ESS of {worst['name']} is only {worst['ess_bulk']:.0f}: estimates are noisy. "
                    "Run more --samples or more --chains.")
-    ss = idata.sample_stats
+    ss = getattr(idata, "sample_stats", {})
     if "diverging" in ss:
         n = int(np.asarray(ss["diverging"].values).sum())
         if n:
