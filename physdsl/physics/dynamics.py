@@ -3,6 +3,7 @@ ABA forward dynamics. All loops run over the static tree at trace time.
 """
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 
 from .kinematics import Kin
@@ -102,8 +103,8 @@ def forward_dynamics(model: Model, kin: Kin, tau):
         else:
             pa = pa + Ia @ c
         if tj.parent >= 0:
-            IA[tj.parent] = IA[tj.parent] + Ia
-            pA[tj.parent] = pA[tj.parent] + pa
+            IA[tj.parent], pA[tj.parent] = jax.lax.optimization_barrier(
+                (IA[tj.parent] + Ia, pA[tj.parent] + pa))
     a: list = [None] * B
     qdd = jnp.zeros(model.nv, dtype=kin.vel.dtype)
     zero6 = jnp.zeros(6, dtype=kin.vel.dtype)
@@ -114,5 +115,5 @@ def forward_dynamics(model: Model, kin: Kin, tau):
             qi = Dinv[i] @ (u[i] - U[i].T @ ap)
             qdd = qdd.at[tj.vadr:tj.vadr + tj.nv].set(qi)
             ap = ap + kin.S[i] @ qi
-        a[i] = ap
+        a[i] = jax.lax.optimization_barrier(ap)
     return qdd

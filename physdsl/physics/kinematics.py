@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import jax
 import jax.numpy as jnp
 
 from .model import Model
@@ -85,6 +86,8 @@ def forward_kinematics(model: Model, prm: dict, q, v) -> Kin:
             Si = jnp.concatenate([St, Sr], 1)
         else:  # pragma: no cover - model.py rejects other kinds
             raise ValueError(tj.kind)
+        # the barrier stops XLA from fusing (and recomputing) whole ancestor chains per body
+        qD, tD = jax.lax.optimization_barrier((qD, tD))
         D[i] = (qD, tD)
         quat[i] = normalize(quat_mul(qD, ref_q))
         pos[i] = quat_to_mat(qD) @ ref_p + tD
@@ -95,6 +98,7 @@ def forward_kinematics(model: Model, prm: dict, q, v) -> Kin:
             c = cross_motion(v_p, Si @ vi)
         cacc[i] = c
         S[i] = Si
+        vel[i], Si = jax.lax.optimization_barrier((vel[i], Si))
         jac[i] = J_p.at[:, tj.vadr:tj.vadr + tj.nv].set(Si) if tj.nv else J_p
     pos_a, quat_a = jnp.stack(pos), jnp.stack(quat)
     rot = quat_to_mat(quat_a)
