@@ -173,7 +173,8 @@ def combined_loo(idata):
     ll = idata.log_likelihood
     arrays = [np.asarray(ll[v].values) for v in ll.data_vars]
     stacked = np.concatenate([a.reshape(a.shape[0], a.shape[1], -1) for a in arrays], axis=2)
-    data = az.from_dict(log_likelihood={"all": stacked})
+    data = az.from_dict(posterior={"_": np.zeros(stacked.shape[:2])},
+                        log_likelihood={"all": stacked})
     return az.loo(data, pointwise=True)
 
 
