@@ -173,3 +173,49 @@ def image_log_likelihood(rendered, observed, sigma, levels: int = 3, kind: str =
             total = total + edge_weight * jnp.sum(
                 _logpdf(gr - go, sigma * jnp.sqrt(2.0), kind, df))
     return total
+
+
+# Frames of image observations, loaded once per process (outside any trace): paths -> array.
+_FRAME_CACHE: dict[tuple[str, ...], np.ndarray] = {}
+MAX_FRAMES = 16  # frames compared per image observation (evenly spaced when there are more)
+
+
+def frame_subset(n: int, max_frames: int = MAX_FRAMES) -> np.ndarray:
+    """Indices of at most ``max_frames`` evenly spaced frames of ``n`` (first and last kept)."""
+    if n <= max_frames:
+        return np.arange(n)
+    return np.unique(np.round(np.linspace(0, n - 1, max_frames)).astype(int))
+
+
+def observed_frames(obs) -> tuple[np.ndarray, np.ndarray]:
+    """(times (F,), frames (F, H, W, 3) in [0, 1]) of an image Observation, subsampled to at
+    most MAX_FRAMES and cached per list of files."""
+    key = tuple(str(p) for p in obs.frames)
+    if key not in _FRAME_CACHE:
+        idx = frame_subset(len(key))
+        _, frames = load_frames([Path(key[i]) for i in idx], times=np.asarray(obs.times)[idx])
+        _FRAME_CACHE[key] = frames
+    idx = frame_subset(len(key))
+    return np.asarray(obs.times)[idx], _FRAME_CACHE[key]
+
+
+def scene_image_log_likelihood(model, obs, rollout, values, levels: int = 3, softness=0.5):
+    """Log-likelihood of an image Observation of ``model.scene`` given a rollout: the scene's
+    camera ``obs.target`` renders the bodies at the (subsampled) frame times, compared with
+    the frames by ``image_log_likelihood`` under the observation's noise model."""
+    from ..errors import DataError
+    from ..expr import evaluate
+    from ..render.scene import render_frames
+
+    times, frames = observed_frames(obs)
+    cam = next((c for c in model.scene.cameras if c.name == obs.target), None)
+    if cam is not None and frames.shape[1:3] != (cam.size[1], cam.size[0]):
+        raise DataError(f"frames are {frames.shape[2]}x{frames.shape[1]} pixels but camera "
+                        f"'{cam.name}' is {cam.size[0]}x{cam.size[1]}", obs.frames[0],
+                        hint="set the camera's size to the frames' size")
+    images = render_frames(model.scene, model.simulator, rollout, values, obs.target, times,
+                           softness)
+    sigma = evaluate(obs.noise.scale, values)
+    df = evaluate(obs.noise.df, values) if obs.noise.df is not None else 4.0
+    return image_log_likelihood(images, jnp.asarray(frames), sigma, levels=levels,
+                                kind=obs.noise.kind, df=df)

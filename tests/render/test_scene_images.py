@@ -1,0 +1,126 @@
+"""Scenes to images (scene_objects, cameras, light) and images as measurements of a scene."""
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from physdsl.compile import Model
+from physdsl.errors import DataError
+from physdsl.observe import image as image_obs
+from physdsl.render import project
+from physdsl.render.scene import scene_camera, scene_kinds, scene_light, scene_objects
+
+from scene_helpers import TOSS, load, write_frames
+
+TRUTH = {"h0": 1.1, "v0": 2.0}
+FRAME_TIMES = np.arange(6) * 0.1
+
+
+def _toss(tmp_path, params, observe="", size=32):
+    return load(TOSS.format(duration=0.5, params=params, w=size, h=size, observe=observe),
+                tmp_path)
+
+
+def _known(tmp_path):
+    return _toss(tmp_path, "param h0: 1.1 m\n  param v0: 2.0 m/s")
+
+
+def _unknown(tmp_path, noise="0.05"):
+    return _toss(tmp_path, "param h0 ~ normal(1.0 m, 0.2 m)\n  param v0 ~ normal(1.5 m/s, 1 m/s)",
+                 f'observe cam.image from "frames/*.png" at 10 Hz {{ noise: {noise} }}')
+
+
+@pytest.fixture(scope="module")
+def toss(tmp_path_factory):
+    """A folder with truth frames of the known toss, the known scene, its model and rollout."""
+    folder = tmp_path_factory.mktemp("toss")
+    scene = _known(folder)
+    model = Model(scene)
+    images = write_frames(scene, {}, "cam", FRAME_TIMES, folder / "frames")
+    return folder, scene, model, model.simulate({}), images
+
+
+def test_scene_objects_follow_the_rollout(toss):
+    _, scene, model, rollout, _ = toss
+    times = np.array([0.0, 0.105, 0.5])  # a grid time, between grid times, the last one
+    objs = scene_objects(scene, model.simulator, rollout, {}, times)
+    assert scene_kinds(scene) == (4, 0)  # floor plane, ball sphere
+    assert objs.pos.shape == (3, 2, 3) and objs.size.shape == (3, 2, 3)
+    # free flight, semi-implicit Euler at dt = 10 ms: x = x0 + vx t, z = z0 + v0 t - g t (t + dt)
+    # / 2 on the grid (linear interpolation between grid points is within g dt^2 / 8)
+    t = times
+    assert np.allclose(objs.pos[:, 1, 0], -0.4 + 1.5 * t, atol=1e-9)
+    assert np.allclose(objs.pos[:, 1, 2], 1.1 + 2.0 * t - 0.5 * 9.81 * t * (t + 0.01),
+                       atol=2e-4)
+    mid = 0.5 * (rollout.body_pos[10] + rollout.body_pos[11])
+    assert np.allclose(objs.pos[1, 1], mid[model.simulator.body_names.index("ball")])
+    assert np.allclose(objs.size[0, 1], [0.08, 0, 0]) and np.allclose(objs.size[0, 0], [0, 0, 1])
+    assert np.allclose(objs.color[0, 1], [0.9, 0.2, 0.1])
+    cam, bg = scene_camera(scene, "cam", {})
+    assert (cam.width, cam.height) == (32, 32) and np.allclose(bg, [0.55, 0.7, 0.9])
+    assert np.isclose(cam.fovy, np.deg2rad(45))
+    light = scene_light(scene, {})
+    assert np.allclose(light.ambient, 0.4) and np.allclose(light.direction, [0.3, 0.4, -1])
+
+
+def test_frames_show_the_ball_where_the_camera_projects_it(toss):
+    _, scene, _, _, images = toss
+    cam, bg = scene_camera(scene, "cam", {})
+    rows, cols = np.mgrid[:32, :32]
+    for t, img in zip(FRAME_TIMES, images):
+        red = np.clip(img[..., 0] - img[..., 2] - 0.05, 0, None)  # sky and ground are not red
+        x = -0.4 + 1.5 * t
+        z = 1.1 + 2.0 * t - 0.5 * 9.81 * t * (t + 0.01)
+        uv = np.asarray(project(cam, jnp.array([x, 0.0, z]))[0])
+        centre = np.array([(red * cols).sum(), (red * rows).sum()]) / red.sum()
+        assert red.sum() > 0.1 and np.hypot(*(centre - uv)) < 0.5, (t, centre, uv)
+
+
+def test_image_likelihood_prefers_the_truth_and_caches_frames(toss):
+    model = Model(_unknown(toss[0]))
+    (obs,) = model.images
+    image_obs._FRAME_CACHE.clear()
+
+    image_obs.observed_frames(obs)  # load outside the trace, as the compiled model does
+
+    @jax.jit
+    def _loglik(values):
+        return model.image_log_likelihood(obs, model.simulator._simulate(values), values)
+
+    def loglik(h0, v0):
+        return float(_loglik({"h0": jnp.asarray(h0), "v0": jnp.asarray(v0)}))
+
+    best = loglik(1.1, 2.0)
+    assert len(image_obs._FRAME_CACHE) == 1
+    for h0, v0 in [(1.12, 2.0), (1.08, 2.0), (1.1, 2.1), (1.1, 1.9)]:
+        assert loglik(h0, v0) < best - 1.0
+    assert len(image_obs._FRAME_CACHE) == 1  # loaded once
+
+
+def test_frame_subset_is_even_and_bounded():
+    assert list(image_obs.frame_subset(5, 16)) == [0, 1, 2, 3, 4]
+    idx = image_obs.frame_subset(100, 16)
+    assert len(idx) == 16 and idx[0] == 0 and idx[-1] == 99
+    assert np.all(np.diff(idx) >= 6) and np.all(np.diff(idx) <= 7)
+
+
+def test_frames_of_the_wrong_size_are_a_data_error(toss):
+    scene = _toss(toss[0], "param h0: 1.1 m\n  param v0: 2.0 m/s",
+                  'observe cam.image from "frames/*.png" at 10 Hz { noise: 0.05 }', size=24)
+    model = Model(scene)
+    rollout = toss[3]  # same bodies: no need to compile this scene's simulator
+    with pytest.raises(DataError, match="frames are 32x32 pixels but camera 'cam' is 24x24"):
+        model.image_log_likelihood(model.images[0], rollout, {})
+
+
+@pytest.mark.slow  # MAP fit through the renderer (about a minute on 2 cores)
+def test_launch_recovered_from_frames_alone(toss):
+    model = Model(_unknown(toss[0]))
+    assert not model.observed  # nothing but the frames
+    post = model.infer(backend="map", chains=1, samples=200, progress=False).posterior
+    h0, v0 = float(post["h0"].mean()), float(post["v0"].mean())
+    # one pixel is 9 cm at the ball; sub-pixel fits from 6 frames of a 2-pixel ball
+    assert abs(h0 - TRUTH["h0"]) < 0.01, h0
+    assert abs(v0 - TRUTH["v0"]) < 0.05, v0
+    # the Laplace spread covers the truth
+    assert abs(h0 - TRUTH["h0"]) < 4 * float(post["h0"].std()) + 1e-3
