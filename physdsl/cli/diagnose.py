@@ -12,7 +12,7 @@ def register(app: typer.Typer) -> None:
         scene: Path = typer.Argument(..., help="Scene file (.phys) that was fitted."),
         posterior: Path = typer.Option(..., "--posterior", "-p", help="Run folder of `physdsl infer`."),
         out: Path = typer.Option(..., "-o", "--out", help="Output folder."),
-        confirm: int = typer.Option(3, "--confirm", min=0, help="Refit the best N candidates."),
+        confirm: int = typer.Option(2, "--confirm", min=0, help="Refit the best N candidates."),
         force: bool = typer.Option(False, "--force", help="Overwrite a non-empty output folder."),
     ) -> None:
         """Rank candidate missing effects (score tests), confirm the best by refitting."""

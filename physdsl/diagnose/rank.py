@@ -19,7 +19,7 @@ import numpy as np
 
 from .. import io
 from ..errors import ModelError
-from ..syntax import edit, loads
+from ..syntax import edit, format_source, loads
 from .candidates import Candidate, physics_candidates, sensor_candidates
 from .score import ScoreResult, jacobian, project_out, score_test, sensor_columns
 from .workflow import noise_unknowns, point_estimate, posterior_draws
@@ -36,6 +36,7 @@ class Ranked:
     statistic: float
     p_value: float
     dof: int
+    log_p: float = 0.0
     z: float | None = None
     estimate: float | None = None
     confirmed: bool | None = None
@@ -64,13 +65,15 @@ class Diagnosis:
 
     def table(self) -> str:
         head = (f"{'#':>2} {'candidate':<34} {'score':>9} {'p-value':>9} "
-                f"{'ΔELPD ± se':>16} {'RMS before → after':>20}")
+                f"{'ΔELPD ± se':>16} {'ΔLFO':>8} {'RMS before → after':>20}")
         lines = [head, "-" * len(head)]
         for r in self.ranking:
             de = (f"{r.delta_elpd:+.1f} ± {r.delta_elpd_se:.1f}" if r.delta_elpd is not None else "")
             rms = (f"{r.rms_before:.2f}σ → {r.rms_after:.2f}σ" if r.rms_after is not None else "")
             name = f"{r.effect} on {r.target}" if r.kind == "effect" else f"sensor {r.effect} on {r.target}"
-            lines.append(f"{r.rank:>2} {name:<34} {r.statistic:>9.1f} {r.p_value:>9.2g} {de:>16} {rms:>20}")
+            lfo = f"{r.delta_lfo:+.1f}" if r.delta_lfo is not None else ""
+            lines.append(f"{r.rank:>2} {name:<34} {r.statistic:>9.1f} {r.p_value:>9.2g} {de:>16} "
+                         f"{lfo:>8} {rms:>20}")
         return "\n".join(lines)
 
 
@@ -164,7 +167,7 @@ def score_all(model, idata) -> list[tuple[Candidate, ScoreResult]]:
     for c in sensor_candidates(scene):
         cols = project_out(J_theta, sensor_columns(aug, values, c.name, c.target[0]))
         results.append((c, score_test(c.key, r, cols, 0)))
-    results.sort(key=lambda cr: (cr[1].p_value, -cr[1].statistic))
+    results.sort(key=lambda cr: (cr[1].log_p, -cr[1].statistic))
     return results
 
 
@@ -237,7 +240,7 @@ def confirm(model, idata, ranked: list[Ranked], cands: dict, k: int, base_rms: f
         r.fitted = {"name": key, "median": float(np.median(fit.posterior[key].values)),
                     "q5": float(np.quantile(fit.posterior[key].values, 0.05)),
                     "q95": float(np.quantile(fit.posterior[key].values, 0.95))}
-        r.snippet = _snippet(model.scene.source, text)
+        r.snippet = _snippet(format_source(model.scene.source), text)
         r.confirmed = bool(r.delta_elpd > 2 * max(r.delta_elpd_se, 1.0) and r.delta_lfo > 0
                            and r.rms_after < 0.9 * base_rms)
 
@@ -251,7 +254,7 @@ def _snippet(before: str, after: str) -> str:
     return "\n".join(added).strip("\n")
 
 
-def diagnose(model, idata, *, confirm_top: int = 3, alpha: float = 0.05, outdir=None,
+def diagnose(model, idata, *, confirm_top: int = 2, alpha: float = 0.05, outdir=None,
              check_report=None) -> Diagnosis:
     """Rank candidate missing effects by evidence; confirm the best by refitting."""
     from .workflow import check_model
@@ -264,16 +267,20 @@ def diagnose(model, idata, *, confirm_top: int = 3, alpha: float = 0.05, outdir=
     for i, (c, s) in enumerate(scored, start=1):
         cands[c.key] = c
         ranked.append(Ranked(i, c.kind, c.name, ",".join(c.target), s.statistic, s.p_value, s.dof,
-                             s.z, s.estimate, note="" if s.information > 0 else
+                             s.log_p, s.z, s.estimate, note="" if s.information > 0 else
                              "the measurements cannot see this effect"))
     n_tests = max(len(ranked), 1)
     significant = [r for r in ranked if r.p_value < alpha / n_tests]
     winner = None
     if significant and confirm_top > 0:
         confirm(model, idata, ranked, cands, confirm_top, float(report.rms_sigma))
-        confirmed = [r for r in ranked if r.confirmed]
+        confirmed = sorted((r for r in ranked if r.confirmed), key=lambda r: -r.delta_elpd)
         if confirmed:
-            winner = max(confirmed, key=lambda r: r.delta_elpd)
+            winner = confirmed[0]
+            # final order: confirmed effects by evidence (ΔELPD), then the rest by score
+            ranked = confirmed + [r for r in ranked if not r.confirmed]
+            for i, r in enumerate(ranked, start=1):
+                r.rank = i
     t2 = time.perf_counter()
     top = ranked[0] if ranked else None
     if winner is not None:

@@ -32,6 +32,7 @@ class ScoreResult:
     p_value: float
     information: float  # efficient information (trace), 0 when the data cannot see the effect
     estimate: float | None  # one-step estimate of the strength change from off: I_eff^-1 U (scalar)
+    log_p: float = 0.0  # natural log of the p-value (ranks candidates whose p underflows to 0)
 
 
 def standardized_residuals(model, values):
@@ -78,21 +79,24 @@ def score_test(key: str, r: np.ndarray, cols_eff: np.ndarray, sign: int = 0) -> 
     trace = float(np.trace(info))
     scale = float(np.sum(r**2)) + 1.0
     if trace <= 1e-12 * scale:
-        return ScoreResult(key, 0.0, None, dof, 1.0, 0.0, None)
+        return ScoreResult(key, 0.0, None, dof, 1.0, 0.0, None, 0.0)
     if dof == 1:
         i = float(info[0, 0])
         z = float(U[0]) / np.sqrt(i)
         est = float(U[0]) / i
         if sign:
             zs = sign * z
-            return ScoreResult(key, zs * zs if zs > 0 else 0.0, zs, 1, float(stats.norm.sf(zs)), i, est)
-        return ScoreResult(key, z * z, None, 1, float(stats.chi2.sf(z * z, 1)), i, est)
+            return ScoreResult(key, zs * zs if zs > 0 else 0.0, zs, 1, float(stats.norm.sf(zs)), i, est,
+                               float(stats.norm.logsf(zs)))
+        return ScoreResult(key, z * z, None, 1, float(stats.chi2.sf(z * z, 1)), i, est,
+                           float(stats.chi2.logsf(z * z, 1)))
     w, v = np.linalg.eigh(0.5 * (info + info.T))
     keep = w > 1e-10 * w.max()
     proj = v[:, keep].T @ U
     T = float(np.sum(proj**2 / w[keep]))
     k = int(keep.sum())
-    return ScoreResult(key, T, None, k, float(stats.chi2.sf(T, k)), trace, None)
+    return ScoreResult(key, T, None, k, float(stats.chi2.sf(T, k)), trace, None,
+                       float(stats.chi2.logsf(T, k)))
 
 
 def sensor_columns(model, values, kind: str, obs_name: str) -> np.ndarray:
