@@ -28,15 +28,15 @@ OBS_PREFIX = "obs:"
 
 
 def distribution_class(name: str):
-    """numpyro distribution class of a snake_case name (``log_normal`` -> ``LogNormal``)."""
-    camel = "".join(part[:1].upper() + part[1:] for part in name.split("_"))
-    cls = getattr(dist, camel, None)
-    if cls is None or not isinstance(cls, type) or not issubclass(cls, dist.Distribution):
-        from .syntax.dists import find  # factories: truncated_normal, categorical, ...
+    """numpyro distribution class (or factory, e.g. ``truncated_normal``) of a snake_case name.
 
-        cls = find(name)
-        if cls is None:
-            raise PhysTypeError(f"unknown distribution '{name}'")
+    The language's checker already resolved the same name, so this lookup is the one it used.
+    """
+    from .syntax.dists import find
+
+    cls = find(name)
+    if cls is None:
+        raise PhysTypeError(f"unknown distribution '{name}'")
     return cls
 
 
@@ -187,7 +187,7 @@ class Model:
         def one(k):
             with numpyro.handlers.seed(rng_seed=k):
                 return self.prior_values()
-        return {k: np.asarray(v) for k, v in jax.vmap(one)(jax.random.split(key, n)).items()}
+        return {k: np.asarray(v) for k, v in jax.jit(jax.vmap(one))(jax.random.split(key, n)).items()}
 
     # -- workflow entry points ----------------------------------------------------------
     def infer(self, **kwargs):
