@@ -27,7 +27,7 @@ class Round:
     verdict: str
 
 
-def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "nuts", chains: int = 2,
+def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", chains: int = 2,
            warmup: int = 300, samples: int = 300, seed: int = 0, force: bool = False,
            echo=print) -> list[Round]:
     """Fit, check, diagnose and extend the scene until it explains the data; returns the rounds."""
