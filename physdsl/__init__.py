@@ -6,8 +6,12 @@ runs in float64 by default; set ``PHYSDSL_FLOAT32=1`` to trade accuracy for spee
 from __future__ import annotations
 
 import os
+import warnings
 
 import jax
+
+# arviz 0.2x announces its coming refactor on import; it is not news to our users.
+warnings.filterwarnings("ignore", message="ArviZ is undergoing", category=FutureWarning)
 
 if os.environ.get("PHYSDSL_FLOAT32", "") not in ("1", "true", "yes"):
     jax.config.update("jax_enable_x64", True)
