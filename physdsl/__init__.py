@@ -34,3 +34,9 @@ __all__ = [
 from .syntax import format_source, load, parse  # noqa: E402  (the .phys language)
 
 __all__ += ["format_source", "load", "parse"]
+
+from .compile import Model  # noqa: E402
+from .compile import compile as compile  # noqa: E402,A001  (text or path -> Model)
+from .diagnose.refine import refine  # noqa: E402
+
+__all__ += ["Model", "compile", "refine"]
