@@ -74,16 +74,30 @@ def get_backend(name: str) -> Backend:
     return BACKENDS[name]
 
 
+def cached(problem: Problem, key, build: Callable):
+    """``problem.cache[key]``, built once: compiled stages are shared by runs on one Problem."""
+    if key not in problem.cache:
+        problem.cache[key] = build()
+    return problem.cache[key]
+
+
+def value_and_grad_fn(problem: Problem):
+    """The jitted (log density, gradient) of ``problem``, compiled once and cached on it."""
+    return cached(problem, "vg", lambda: jax.jit(jax.value_and_grad(problem.logdensity)))
+
+
 def safe_logdensity(fn):
     """Wrap a log density so NaN/inf values or gradients become -inf with zero gradient.
 
     A rollout that blows up for some parameter values then is a rejected proposal, not a
-    crash, and no NaN leaks into the sampler's state through the gradient.
+    crash, and no NaN leaks into the sampler's state through the gradient. Without
+    differentiation only the value is computed (gradient-free backends pay no gradient).
     """
 
     @jax.custom_vjp
     def f(x):
-        return _clean(*jax.value_and_grad(fn)(x))[0]
+        v = fn(x)
+        return jnp.where(jnp.isfinite(v), v, -jnp.inf)
 
     def fwd(x):
         v, g = _clean(*jax.value_and_grad(fn)(x))

@@ -14,6 +14,7 @@ import numpy as np
 from .. import io
 from ..compile import OBS_PREFIX, PRED_PREFIX
 from ..observe import trajectory
+from .base import cached
 
 
 def build_inference_data(model, problem, flat: np.ndarray, stats: dict, settings) -> az.InferenceData:
@@ -31,7 +32,8 @@ def build_inference_data(model, problem, flat: np.ndarray, stats: dict, settings
         preds = {o.obs.name: c[PRED_PREFIX + o.obs.name] for o in model.observed}
         return c, pointwise_from_predictions(model, values, preds)
 
-    constrained, loglik = jax.jit(jax.vmap(one))(jnp.asarray(flat.reshape(chains * samples, -1)))
+    fn = cached(problem, "posterior-pass", lambda: jax.jit(jax.vmap(one)))
+    constrained, loglik = fn(jnp.asarray(flat.reshape(chains * samples, -1)))
     unknowns = set(model.unknown_names)
     shaped = lambda v: np.asarray(v).reshape(chains, samples, *v.shape[1:])  # noqa: E731
     posterior = {k: shaped(v) for k, v in constrained.items() if k in unknowns}

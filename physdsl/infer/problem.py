@@ -1,48 +1,90 @@
-"""From a compiled Model to a Problem: numpyro's potential in unconstrained space, flattened."""
+"""From a compiled Model to a Problem: numpyro's potential in unconstrained space, flattened.
+
+The unconstrained space is that of the prior program alone (the physics adds only
+deterministic and observed sites), so building it never runs or compiles the rollout. The
+Problem is made once per Model and cached, so every run on one Model (several backends,
+resumed runs, diagnosis refits) shares its compiled functions (``Problem.cache``).
+"""
 from __future__ import annotations
+
+import weakref
 
 import jax
 import jax.numpy as jnp
+import numpy as np
+import numpyro
 from jax.flatten_util import ravel_pytree
-from numpyro.infer.util import initialize_model
-from numpyro.infer.initialization import init_to_sample
+from numpyro.infer.util import constrain_fn, potential_energy, unconstrain_fn
 
 from ..errors import InferenceError
-from .base import Problem, safe_logdensity
+from .base import Problem, cached, safe_logdensity, value_and_grad_fn
+
+_PROBLEMS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+INIT_ROUNDS = 10  # rounds of prior draws tried before giving up on a finite start
 
 
-def make_problem(model, key, chains: int):
-    """Return (Problem, initial flat positions (chains, dim)) drawn from the prior.
+def model_problem(model) -> Problem:
+    """The Problem of ``model`` (made once per Model and cached)."""
+    if model not in _PROBLEMS:
+        _PROBLEMS[model] = _build_problem(model)
+    return _PROBLEMS[model]
 
-    numpyro's ``initialize_model`` gives the potential (negative log joint) in unconstrained
-    space and the map back to constrained values; each chain starts from its own prior draw
-    at which the log density is finite.
-    """
+
+def _build_problem(model) -> Problem:
     discrete = [u.name for u in model.unknowns if u.discrete]
     if discrete:
         raise InferenceError(f"discrete unknowns ({', '.join(discrete)}) are not supported by "
                              "trajectory inference yet",
                              hint="give them a value, or fit shape from images with "
                                   "physdsl.render.inverse (Metropolis-within-Gibbs)")
-    try:
-        info, potential_fn, postprocess_fn, _ = initialize_model(
-            jax.random.split(key, chains), model.numpyro_model, init_strategy=init_to_sample,
-            dynamic_args=False)
-    except RuntimeError as err:
-        raise InferenceError("no prior draw gives a finite likelihood",
-                             hint="check priors and units; the model may blow up at every "
-                                  f"draw ({err})") from None
-    z = info.z
-    one = jax.tree_util.tree_map(lambda a: a[0], z)
-    _, unravel = ravel_pytree(one)
-    positions = jax.vmap(lambda t: ravel_pytree(t)[0])(z)
+    with numpyro.handlers.seed(rng_seed=0):
+        draw = model.prior_values()
+    flat, unravel = ravel_pytree(unconstrain_fn(model.prior_values, (), {}, draw))
 
     def logdensity(x):
-        return -potential_fn(unravel(x))
+        return -potential_energy(model.numpyro_model, (), {}, unravel(x))
 
     def to_constrained(x):
-        return postprocess_fn(unravel(x))
+        return constrain_fn(model.numpyro_model, (), {}, unravel(x), return_deterministic=True)
 
-    problem = Problem(safe_logdensity(logdensity), to_constrained, int(positions.shape[1]), model, {})
-    return problem, positions
+    return Problem(safe_logdensity(logdensity), to_constrained, int(flat.size), model, {})
 
+
+def prior_draws_unconstrained(problem: Problem, key, n: int) -> np.ndarray:
+    """``n`` prior draws as flat unconstrained vectors (n, dim); runs no physics."""
+    model = problem.model
+
+    def one(k):
+        with numpyro.handlers.seed(rng_seed=k):
+            values = model.prior_values()
+        return ravel_pytree(unconstrain_fn(model.prior_values, (), {}, values))[0]
+
+    fn = cached(problem, ("prior-draws", n), lambda: jax.jit(jax.vmap(one)))
+    return np.asarray(fn(jax.random.split(key, n)))
+
+
+def initial_positions(problem: Problem, key, chains: int) -> jnp.ndarray:
+    """One prior draw per chain at which the log density and its gradient are finite.
+
+    Draws are tried in order, in rounds of ``max(4 * chains, 8)``; each is checked with the
+    Problem's one compiled value-and-gradient function.
+    """
+    vg = value_and_grad_fn(problem)
+    found: list[np.ndarray] = []
+    n = max(4 * chains, 8)
+    for r in range(INIT_ROUNDS):
+        for x in prior_draws_unconstrained(problem, jax.random.fold_in(key, r), n):
+            v, g = vg(jnp.asarray(x))
+            if np.isfinite(float(v)) and np.all(np.isfinite(np.asarray(g))):
+                found.append(x)
+                if len(found) == chains:
+                    return jnp.asarray(np.stack(found))
+    raise InferenceError("no prior draw gives a finite likelihood",
+                         hint=f"tried {INIT_ROUNDS * n} draws; check priors and units: the "
+                              "rollout may blow up for every draw")
+
+
+def make_problem(model, key, chains: int):
+    """Return (Problem, initial flat positions (chains, dim)) drawn from the prior."""
+    problem = model_problem(model)
+    return problem, initial_positions(problem, key, chains)

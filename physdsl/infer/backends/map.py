@@ -13,15 +13,7 @@ import jax.numpy as jnp
 import numpy as np
 from scipy.optimize import minimize
 
-from ..base import Backend, register_backend
-
-
-def value_and_grad_fn(problem):
-    """The jitted (log density, gradient) of ``problem``, compiled once and cached on it."""
-    cache = problem.cache
-    if "vg" not in cache:
-        cache["vg"] = jax.jit(jax.value_and_grad(problem.logdensity))
-    return cache["vg"]
+from ..base import Backend, register_backend, value_and_grad_fn  # noqa: F401 - re-exported
 
 
 def find_mode(problem, x0, steps: int = 300) -> np.ndarray:

@@ -2,22 +2,36 @@
 
 Warmup adapts a diagonal proposal: its shape from the running variance of the chain and its
 overall scale by Robbins-Monro towards the optimal acceptance rate 0.234 (Roberts & Rosenthal).
-Needs no gradient, so it also runs on rollouts that are not differentiable.
+Needs no gradient (only the log density's value is compiled), so it also runs on rollouts that are
+not differentiable. As for HMC, one transition of one chain (proposal scale as an argument)
+is jitted once per Problem and driven from Python in warmup and sampling alike.
 """
 from __future__ import annotations
 
 import blackjax
 import jax
 import jax.numpy as jnp
+import numpy as np
+from blackjax.mcmc.random_walk import RWState
 
-from ..base import Backend, register_backend
+from ..base import Backend, cached, register_backend
+from .hmc import chain_keys, stack, unstack
 
 TARGET_ACCEPT = 0.234
 
 
-def _step(problem, state, key, sigma):
-    kernel = blackjax.normal_random_walk(problem.logdensity, sigma)
-    return kernel.step(key, state)
+def _adapt(i, log_scale, mean, var, position, acc):
+    """One Robbins-Monro update of a chain's log scale and running moments; and its new sigma."""
+    acc = jnp.where(jnp.isfinite(acc), jnp.minimum(acc, 1.0), 0.0)
+    log_scale = log_scale + (acc - TARGET_ACCEPT) / jnp.sqrt(i + 1.0)
+    w = 1.0 / (i + 10.0)
+    delta = position - mean
+    var = jnp.clip((1 - w) * var + w * delta**2, 1e-12, 1e6)
+    return log_scale, mean + w * delta, var, _sigma(log_scale, var)
+
+
+def _sigma(log_scale, var):
+    return jnp.exp(log_scale) * jnp.sqrt(var) * 2.38 / jnp.sqrt(var.shape[-1])
 
 
 @register_backend
@@ -25,47 +39,45 @@ class RMH(Backend):
     name = "rmh"
     uses_gradient = False
 
+    def _step(self, problem):
+        def build():
+            logdensity = problem.logdensity
+
+            def one(k, state, sigma):
+                return blackjax.normal_random_walk(logdensity, sigma).step(k, state)
+            return jax.jit(one)
+        return cached(problem, ("rmh", "step"), build)
+
     def warmup(self, problem, positions, key, settings):
-        dim = positions.shape[1]
+        chains, dim = positions.shape
+        step = self._step(problem)
+        value = cached(problem, ("rmh", "value"), lambda: jax.jit(problem.logdensity))
+        adapt = cached(problem, ("rmh", "adapt"), lambda: jax.jit(_adapt))
+        positions = jnp.asarray(positions)
+        states = [RWState(x, value(x)) for x in positions]
+        moments = [(jnp.zeros(()), x, jnp.full(dim, 0.01)) for x in positions]
+        sigmas = [_sigma(m[0], m[2]) for m in moments]
         n = max(settings.warmup, 1)
-
-        def chain(k, x):
-            state = blackjax.normal_random_walk(problem.logdensity, jnp.ones(dim)).init(x)
-
-            def body(carry, inp):
-                state, log_scale, mean, var = carry
-                i, kk = inp
-                sigma = jnp.exp(log_scale) * jnp.sqrt(var) * 2.38 / jnp.sqrt(dim)
-                state, info = _step(problem, state, kk, sigma)
-                acc = jnp.where(jnp.isfinite(info.acceptance_rate), info.acceptance_rate, 0.0)
-                gain = 1.0 / jnp.sqrt(i + 1.0)
-                log_scale = log_scale + gain * (jnp.minimum(acc, 1.0) - TARGET_ACCEPT)
-                w = 1.0 / (i + 10.0)
-                delta = state.position - mean
-                mean = mean + w * delta
-                var = jnp.clip((1 - w) * var + w * delta**2, 1e-12, 1e6)
-                return (state, log_scale, mean, var), acc
-
-            init_var = jnp.full(dim, 0.01)
-            carry0 = (state, jnp.asarray(0.0), x, init_var)
-            (state, log_scale, _, var), acc = jax.lax.scan(
-                body, carry0, (jnp.arange(n, dtype=float), jax.random.split(k, n)))
-            sigma = jnp.exp(log_scale) * jnp.sqrt(var) * 2.38 / jnp.sqrt(dim)
-            return state, {"sigma": sigma}
-
-        keys = jax.random.split(key, positions.shape[0])
-        states, params = jax.jit(jax.vmap(chain))(keys, positions)
-        return states, params, {"proposal_sigma": params["sigma"]}
+        for i, k in enumerate(chain_keys(key, n, chains)):
+            for c in range(chains):
+                states[c], info = step(k[c], states[c], sigmas[c])
+                *moments[c], sigmas[c] = adapt(jnp.asarray(float(i)), *moments[c],
+                                               states[c].position, info.acceptance_rate)
+        sigma = jnp.stack(sigmas)
+        return stack(states), {"sigma": sigma}, {"proposal_sigma": sigma}
 
     def sample(self, problem, states, params, key, n, settings):
-        def chain(k, state, p):
-            def body(s, kk):
-                s, info = _step(problem, s, kk, p["sigma"])
-                return s, (s.position, {"acceptance_rate": info.acceptance_rate,
-                                        "nonfinite": ~jnp.isfinite(s.logdensity)})
-
-            return jax.lax.scan(body, state, jax.random.split(k, n))
-
-        keys = jax.random.split(key, states.position.shape[0])
-        states, (draws, stats) = jax.jit(jax.vmap(chain))(keys, states, params)
-        return states, draws, stats
+        step = self._step(problem)
+        chains = np.shape(params["sigma"])[0]
+        states = unstack(RWState(*states), chains)
+        draws, acc, nonfinite = [], [], []
+        for k in chain_keys(key, n, chains):
+            row_acc = []
+            for c in range(chains):
+                states[c], info = step(k[c], states[c], params["sigma"][c])
+                row_acc.append(np.asarray(info.acceptance_rate))
+            draws.append(np.stack([np.asarray(s.position) for s in states]))
+            acc.append(np.stack(row_acc))
+            nonfinite.append(~np.isfinite([float(s.logdensity) for s in states]))
+        return stack(states), np.stack(draws, axis=1), {"acceptance_rate": np.stack(acc, axis=1),
+                                                        "nonfinite": np.stack(nonfinite, axis=1)}
