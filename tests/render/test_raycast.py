@@ -25,24 +25,24 @@ def _rays(n, seed):
 
 @pytest.mark.parametrize("kind", [SPHERE, BOX, CYLINDER, CAPSULE])
 def test_closed_form_hits_match_marching(kind):
-    o, d = _rays(200, kind)
+    o, d = _rays(150, kind)
     size = jnp.asarray(SIZES[kind])
     sd, tc, depth, normal, front = jax.jit(lambda o, d: convex_hits(
         tuple(o.T), tuple(d.T), kind, size))(jnp.asarray(o), jnp.asarray(d))
-    ts = np.linspace(0.0, 1.0, 10001)
+    ts = np.linspace(0.0, 1.0, 6001)
     pts = o[:, None, :] + ts[None, :, None] * d[:, None, :]
     field = np.asarray(sdf(kind, jnp.asarray(pts), size))
     hit_true = field.min(axis=1) < 0
     hit = np.asarray(sd) < 0
-    near_edge = np.abs(field.min(axis=1)) < 2e-4  # grazing rays: sampling decides
+    near_edge = np.abs(field.min(axis=1)) < 3e-4  # grazing rays: sampling decides
     assert 0.15 < hit_true.mean() < 0.8
     assert np.all((hit == hit_true) | near_edge)
     # sd is the SDF at one point of the ray, so never below the ray's true minimum
-    # (sampled every 0.1 mm: the sampled minimum is within 0.1 mm of the true one at a ridge)
+    # (sampled every 0.17 mm: the sampled minimum is within that of the true one at a ridge)
     m, sd = field.min(axis=1), np.asarray(sd)
-    assert np.all(sd >= m - 1e-4)
-    if kind in (SPHERE, CAPSULE):  # closest approach to centre / segment: exact
-        assert np.allclose(sd, m, atol=1e-6)
+    assert np.all(sd >= m - 2e-4)
+    if kind in (SPHERE, CAPSULE):  # closest approach to centre / segment: exact, so never
+        assert np.all(sd <= m + 1e-9)  # above any sampled value of the SDF along the ray
     else:  # box, cylinder: an upper bound (within 4x of the true distance near the silhouette)
         miss = m > 0
         assert np.all(sd[miss] <= 5 * m[miss] + 1e-4)
@@ -50,7 +50,7 @@ def test_closed_form_hits_match_marching(kind):
     first = np.argmax(field < 0, axis=1)
     t_true = ts[first]
     ok = hit & hit_true & ~near_edge
-    assert np.allclose(np.asarray(depth)[ok], t_true[ok], atol=2e-4)
+    assert np.allclose(np.asarray(depth)[ok], t_true[ok], atol=3e-4)
     # normals: unit, and the SDF gradient at the hit point
     n = np.stack(normal, axis=-1)[ok]
     p = o[ok] + np.asarray(depth)[ok, None] * d[ok]

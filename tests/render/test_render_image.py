@@ -93,9 +93,11 @@ def test_pyramid_likelihood_decreases_monotonically_away_from_truth():
     observed = render(_sphere(0.0, r=r), LIGHT, CAM, BG, 0.5)
     shifts = np.linspace(0, 5 * r, 21)
     imgs = jax.vmap(lambda x: render(_sphere(x, r=r), LIGHT, CAM, BG, 0.5))(jnp.asarray(shifts))
-    ll3 = np.array([image_log_likelihood(i, observed, 0.05, levels=3) for i in imgs])
+    lik = jax.jit(jax.vmap(image_log_likelihood, in_axes=(0, None, None, None)),
+                  static_argnums=3)
+    ll3 = np.asarray(lik(imgs, observed, 0.05, 3))
     assert np.all(np.diff(ll3) < 0), ll3
-    ll1 = np.array([image_log_likelihood(i, observed, 0.05, levels=1) for i in imgs])
+    ll1 = np.asarray(lik(imgs, observed, 0.05, 1))
     # without the pyramid the likelihood is flat once the silhouettes no longer overlap
     # (up to the sub-pixel jitter of a 3-pixel disc's rasterisation)
     assert abs(ll1[-1] - ll1[-3]) < 0.01 * abs(ll1[-1] - ll1[0])
