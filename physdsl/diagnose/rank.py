@@ -152,7 +152,7 @@ def score_all(model, idata) -> list[tuple[Candidate, ScoreResult]]:
         decl = scene.effect_library[c.name]
         shape = aug.scene.unknown(key).shape
         values[key] = np.full(shape, decl.strength.off if decl.strength.off is not None else 0.0)
-    r, J_theta, J_psi, _ = jacobian(aug, values, nuisance, tested)
+    r, J_theta, J_psi, pred = jacobian(aug, values, nuisance, tested)
     results = []
     sizes = {k: int(np.prod(aug.scene.unknown(k).shape)) for k in tested}
     offset = 0
@@ -165,7 +165,7 @@ def score_all(model, idata) -> list[tuple[Candidate, ScoreResult]]:
         sign = scene.effect_library[c.name].strength.sign if sizes[key] == 1 else 0
         results.append((c, score_test(c.key, r, cols, sign)))
     for c in sensor_candidates(scene):
-        cols = project_out(J_theta, sensor_columns(aug, values, c.name, c.target[0]))
+        cols = project_out(J_theta, sensor_columns(aug, values, c.name, c.target[0], pred))
         results.append((c, score_test(c.key, r, cols, 0)))
     results.sort(key=lambda cr: (cr[1].log_p, -cr[1].statistic))
     return results

@@ -71,6 +71,7 @@ def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", cha
         cand = next(c for c in physics_candidates(model.scene) if c.key == f"{w.effect}@{w.target}")
         text = with_effect(model.scene, cand)
         io.write_text(nxt, text)
+        _copy_data(scene_path.parent, nxt.parent)
         echo(f"round {k}: added `{w.snippet.strip()}` -> {nxt}")
         del Candidate
         current = nxt
@@ -79,12 +80,16 @@ def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", cha
 
 
 def _copy_scene(src: Path, dst: Path) -> None:
-    """Copy the user's scene and make its relative data paths still resolve from ``dst``."""
-    text = src.read_text(encoding="utf-8")
-    io.write_text(dst, text)
-    for item in src.parent.iterdir():
-        target = dst.parent / item.name
-        if item.name == src.name or target.exists():
+    """Copy the user's scene and its data, so its relative data paths resolve from ``dst``."""
+    io.write_text(dst, src.read_text(encoding="utf-8"))
+    _copy_data(src.parent, dst.parent, skip=src.name)
+
+
+def _copy_data(src_dir: Path, dst_dir: Path, skip: str = "") -> None:
+    """Copy the measurement files beside a scene (CSV, JSON, images, meshes) into ``dst_dir``."""
+    for item in src_dir.iterdir():
+        target = dst_dir / item.name
+        if item.name == skip or target.exists():
             continue
         if item.is_file() and item.suffix.lower() in (".csv", ".json", ".png", ".jpg", ".obj", ".phys"):
             shutil.copy2(item, target)

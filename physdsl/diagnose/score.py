@@ -18,7 +18,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from jax.flatten_util import ravel_pytree
-from scipy import stats
+from scipy import special, stats
 
 from ..observe import trajectory
 
@@ -35,9 +35,9 @@ class ScoreResult:
     log_p: float = 0.0  # natural log of the p-value (ranks candidates whose p underflows to 0)
 
 
-def standardized_residuals(model, values):
+def standardized_residuals(model, values, pred=None):
     """All measured residual components divided by their noise scale, as one vector."""
-    pred = model.predict(values)
+    pred = model.predict(values) if pred is None else pred
     parts = []
     for o in model.observed:
         res = trajectory.residual(o.obs.quantity, pred[o.obs.name], jnp.asarray(o.measured))
@@ -47,7 +47,11 @@ def standardized_residuals(model, values):
 
 
 def jacobian(model, values: dict, nuisance: list[str], tested: list[str]):
-    """(r, J_theta, J_psi, unravel_psi) at ``values`` for nuisance and tested unknown names."""
+    """(r, J_theta, J_psi, predictions) at ``values`` for nuisance and tested unknown names.
+
+    One compiled forward-mode pass gives the residuals, their Jacobian and the predictions
+    (compiling the physics is the dominant cost, so nothing else is jitted separately).
+    """
     theta0, unravel_theta = ravel_pytree({k: jnp.asarray(values[k]) for k in nuisance})
     psi0, unravel_psi = ravel_pytree({k: jnp.asarray(values[k]) for k in tested})
 
@@ -55,12 +59,14 @@ def jacobian(model, values: dict, nuisance: list[str], tested: list[str]):
         vals = dict(values)
         vals.update(unravel_theta(x[: theta0.size]))
         vals.update(unravel_psi(x[theta0.size:]))
-        return standardized_residuals(model, vals)
+        pred = model.predict(vals)
+        r = standardized_residuals(model, vals, pred)
+        return r, (r, pred)
 
     x0 = jnp.concatenate([theta0, psi0])
-    r = jax.jit(r_of)(x0)
-    J = jax.jit(jax.jacfwd(r_of))(x0)
-    return np.asarray(r), np.asarray(J[:, : theta0.size]), np.asarray(J[:, theta0.size:]), unravel_psi
+    J, (r, pred) = jax.jit(jax.jacfwd(r_of, has_aux=True))(x0)
+    pred = {k: np.asarray(v) for k, v in pred.items()}
+    return np.asarray(r), np.asarray(J[:, : theta0.size]), np.asarray(J[:, theta0.size:]), pred
 
 
 def project_out(J_theta: np.ndarray, cols: np.ndarray) -> np.ndarray:
@@ -89,19 +95,41 @@ def score_test(key: str, r: np.ndarray, cols_eff: np.ndarray, sign: int = 0) -> 
             return ScoreResult(key, zs * zs if zs > 0 else 0.0, zs, 1, float(stats.norm.sf(zs)), i, est,
                                float(stats.norm.logsf(zs)))
         return ScoreResult(key, z * z, None, 1, float(stats.chi2.sf(z * z, 1)), i, est,
-                           float(stats.chi2.logsf(z * z, 1)))
+                           chi2_logsf(z * z, 1))
     w, v = np.linalg.eigh(0.5 * (info + info.T))
     keep = w > 1e-10 * w.max()
     proj = v[:, keep].T @ U
     T = float(np.sum(proj**2 / w[keep]))
     k = int(keep.sum())
-    return ScoreResult(key, T, None, k, float(stats.chi2.sf(T, k)), trace, None,
-                       float(stats.chi2.logsf(T, k)))
+    return ScoreResult(key, T, None, k, float(stats.chi2.sf(T, k)), trace, None, chi2_logsf(T, k))
 
 
-def sensor_columns(model, values, kind: str, obs_name: str) -> np.ndarray:
-    """dr/d(sensor parameter) columns for an offset (per axis), gain or delay on one observation."""
-    pred = model.predict(values)
+def chi2_logsf(T: float, k: int) -> float:
+    """log P(chi2_k > T), finite far in the tail (scipy's logsf is -inf beyond T ~ 1500, which
+    would rank a many-dof candidate above a stronger one-dof candidate)."""
+    direct = float(stats.chi2.logsf(T, k))
+    if np.isfinite(direct):
+        return direct
+    a, x = 0.5 * k, 0.5 * T  # Q(a, x) ~ x^(a-1) e^-x / Gamma(a) * (1 + (a-1)/x + (a-1)(a-2)/x^2)
+    series = 1.0 + (a - 1.0) / x + (a - 1.0) * (a - 2.0) / x**2
+    return float((a - 1.0) * np.log(x) - x - special.gammaln(a) + np.log(series))
+
+
+def chi2_logsf(t: float, k: int) -> float:
+    """log P(chi2_k > t), finite even where scipy's value underflows (large t: asymptotic series)."""
+    v = float(stats.chi2.logsf(t, k))
+    if np.isfinite(v):
+        return v
+    from scipy.special import gammaln
+
+    a, x = k / 2.0, t / 2.0
+    return float((a - 1) * np.log(x) - x - gammaln(a) + np.log1p((a - 1) / x))
+
+
+def sensor_columns(model, values, kind: str, obs_name: str, pred=None) -> np.ndarray:
+    """dr/d(sensor parameter) columns for an offset (per axis), gain or delay on one observation
+    (``pred``: the model's predictions at ``values``, computed if not given)."""
+    pred = model.predict(values) if pred is None else pred
     cols = []
     for o in model.observed:
         n, k = o.mask.shape
