@@ -245,6 +245,24 @@ def confirm(model, idata, ranked: list[Ranked], cands: dict, k: int, base_rms: f
                            and r.rms_after < 0.9 * base_rms)
 
 
+ELPD_TIE = 4.0  # ΔELPD differences below this are ties, settled by leave-future-out
+
+
+def order_by_evidence(confirmed: list[Ranked]) -> list[Ranked]:
+    """Confirmed candidates, best first: by ΔELPD, near-ties broken by ΔLFO.
+
+    Pointwise LOO barely separates effects that bend a trajectory alike over the fitted span
+    (linear vs quadratic drag at nearly constant speed); predicting the future does.
+    """
+    best = sorted(confirmed, key=lambda r: -r.delta_elpd)
+    if not best:
+        return best
+    top = best[0].delta_elpd
+    tied = [r for r in best if top - r.delta_elpd < ELPD_TIE]
+    rest = [r for r in best if top - r.delta_elpd >= ELPD_TIE]
+    return sorted(tied, key=lambda r: -(r.delta_lfo or 0.0)) + rest
+
+
 def _snippet(before: str, after: str) -> str:
     """The lines ``after`` adds to ``before`` (the .phys text to paste)."""
     import difflib
@@ -274,7 +292,7 @@ def diagnose(model, idata, *, confirm_top: int = 2, alpha: float = 0.05, outdir=
     winner = None
     if significant and confirm_top > 0:
         confirm(model, idata, ranked, cands, confirm_top, float(report.rms_sigma))
-        confirmed = sorted((r for r in ranked if r.confirmed), key=lambda r: -r.delta_elpd)
+        confirmed = order_by_evidence([r for r in ranked if r.confirmed])
         if confirmed:
             winner = confirmed[0]
             # final order: confirmed effects by evidence (ΔELPD), then the rest by score
