@@ -308,6 +308,9 @@ def diagnose(model, idata, *, confirm_top: int = 2, alpha: float = 0.05, outdir=
     elif top is not None and top.kind == "sensor" and top.p_value < alpha / n_tests:
         verdict = (f"the misfit looks like a sensor fault: {top.effect} on {top.target} "
                    f"(p = {top.p_value:.2g}), not a missing physical effect")
+    elif top is not None and confirm_top == 0 and top.p_value < alpha / n_tests:
+        verdict = (f"most likely missing (score test only, not confirmed by a refit): "
+                   f"{top.effect} on {top.target} (p = {top.p_value:.2g})")
     elif report.consistent:
         verdict = "no missing effect: the residuals are consistent with the noise"
     else:
