@@ -1,0 +1,162 @@
+"""Diagnosis benchmark on the hidden-effect examples: prints ``name: value`` lines and a table.
+
+For each ``examples/hidden-effect/CASE`` (``naive.phys`` lacks the effect named in
+``truth.json`` ``{"hidden_effect": {"effect", "target"}}``): fit the naive scene (MAP +
+Laplace, the backend ``diagnose`` itself refits with), run ``diagnose`` (score tests of every
+candidate, then refits of the best ``--confirm`` physical candidates) and report
+
+- ``score_rank.CASE``: rank of the true effect on the true target among the *physical*
+  candidates by score test alone (1 = the score test found it),
+- ``rank.CASE``: its rank in the final table (all candidates, after confirmation),
+- ``winner.CASE``: the confirmed effect (or ``none``), ``verdict.CASE``,
+- ``rms_before.CASE`` / ``rms_after.CASE``: residual RMS in noise units without the effect and
+  after refitting with the winner,
+- ``fitted.CASE``: the winner's fitted strength (median and 90% interval) and the truth,
+- ``seconds.CASE``: wall time (fit, score tests, confirmation).
+
+Each case runs in its own process with a time limit (``--timeout``, seconds), so a case that
+cannot finish is reported as such and the others still run.
+
+Run: .venv/bin/python benchmarks/diagnosis.py [--cases thrown_ball,pendulum] [--confirm 2]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+CASES = ROOT / "examples" / "hidden-effect"
+
+
+def run_case(name: str, confirm: int, seed: int) -> dict:
+    """Fit, diagnose and score one case in this process; returns the figures as a dict."""
+    import numpy as np
+
+    import physdsl  # noqa: F401 - float64
+    from physdsl.compile import Model
+    from physdsl.diagnose.rank import diagnose, unknown_key
+    from physdsl.diagnose.candidates import Candidate
+    from physdsl.syntax import load
+
+    folder = CASES / name
+    truth = json.loads((folder / "truth.json").read_text())
+    hidden = truth["hidden_effect"]
+    true_key = f"{hidden['effect']}@{hidden['target']}"
+    t0 = time.perf_counter()
+    model = Model(load(folder / "naive.phys"))
+    idata = model.infer(backend="map", chains=2, warmup=300, samples=200, seed=seed,
+                        progress=False)
+    t1 = time.perf_counter()
+    diag = diagnose(model, idata, confirm_top=confirm)
+    t2 = time.perf_counter()
+    keys = [f"{r.effect}@{r.target}" for r in diag.ranking]
+    physical = sorted((r for r in diag.ranking if r.kind == "effect"),
+                      key=lambda r: (r.log_p, -r.statistic))
+    phys_keys = [f"{r.effect}@{r.target}" for r in physical]
+    row = next((r for r in diag.ranking if f"{r.effect}@{r.target}" == true_key), None)
+    w = diag.winner
+    out = {
+        "case": name, "true": true_key,
+        "score_rank": phys_keys.index(true_key) + 1 if true_key in phys_keys else None,
+        "n_physical": len(phys_keys),
+        "rank": keys.index(true_key) + 1 if true_key in keys else None,
+        "n_candidates": len(keys),
+        "top_score": keys[0] if keys else None,
+        "winner": f"{w.effect}@{w.target}" if w else None,
+        "verdict": diag.verdict,
+        "rms_before": diag.rms_sigma,
+        "rms_after": w.rms_after if w else (row.rms_after if row else None),
+        "true_confirmed": bool(row.confirmed) if row is not None else None,
+        "seconds_fit": t1 - t0, "seconds_score": diag.seconds.get("score_tests"),
+        "seconds_confirm": diag.seconds.get("confirmation"), "seconds": t2 - t0,
+    }
+    if w is not None and w.fitted:
+        truth_value = None
+        cand = Candidate("effect", w.effect, tuple(w.target.split(",")))
+        key = unknown_key(model.scene, cand)
+        if key in truth.get("parameters", {}):
+            truth_value = float(np.asarray(truth["parameters"][key]))
+        out["fitted"] = {**w.fitted, "truth": truth_value}
+    return out
+
+
+def _fmt(v, spec="") -> str:
+    if v is None:
+        return "—"
+    return format(v, spec) if spec else str(v)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cases", default="", help="comma-separated case names (default: all)")
+    ap.add_argument("--confirm", type=int, default=2, help="physical candidates to refit")
+    ap.add_argument("--timeout", type=float, default=2400.0, help="seconds per case")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--one", default="", help=argparse.SUPPRESS)  # worker mode
+    args = ap.parse_args()
+    if args.one:
+        print("RESULT " + json.dumps(run_case(args.one, args.confirm, args.seed)), flush=True)
+        return
+    names = [n for n in args.cases.split(",") if n] or sorted(
+        p.name for p in CASES.iterdir() if (p / "truth.json").exists())
+    results = []
+    for name in names:
+        t0 = time.perf_counter()
+        cmd = [sys.executable, __file__, "--one", name, "--confirm", str(args.confirm),
+               "--seed", str(args.seed)]
+        try:
+            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=args.timeout)
+            line = next((ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")), None)
+            if line is None:
+                tail = (proc.stderr.strip().splitlines() or ["no output"])[-1]
+                res = {"case": name, "error": f"failed (exit {proc.returncode}): {tail}"}
+            else:
+                res = json.loads(line[len("RESULT "):])
+        except subprocess.TimeoutExpired:
+            res = {"case": name, "error": f"did not finish within {args.timeout:.0f} s"}
+        res.setdefault("seconds", time.perf_counter() - t0)
+        results.append(res)
+        _print_lines(res)
+    print()
+    print(_table(results))
+
+
+def _print_lines(r: dict) -> None:
+    n = r["case"]
+    if "error" in r:
+        print(f"error.{n}: {r['error']}", flush=True)
+        return
+    print(f"score_rank.{n}: {_fmt(r['score_rank'])} of {r['n_physical']} physical")
+    print(f"rank.{n}: {_fmt(r['rank'])} of {r['n_candidates']}")
+    print(f"winner.{n}: {r['winner'] or 'none'} (true {r['true']})")
+    print(f"verdict.{n}: {r['verdict']}")
+    print(f"rms_before.{n}: {r['rms_before']:.3f}")
+    print(f"rms_after.{n}: {_fmt(r['rms_after'], '.3f')}")
+    if r.get("fitted"):
+        f = r["fitted"]
+        print(f"fitted.{n}: {f['name']} = {f['median']:.4g} [{f['q5']:.4g}, {f['q95']:.4g}] "
+              f"(truth {_fmt(f['truth'], '.4g')})")
+    print(f"seconds.{n}: {r['seconds']:.0f} (fit {r['seconds_fit']:.0f}, score "
+          f"{r['seconds_score']:.0f}, confirm {r['seconds_confirm']:.0f})", flush=True)
+
+
+def _table(results: list[dict]) -> str:
+    lines = ["| case | true effect | score rank (physical) | final rank | winner | RMS before → after | time (s) |",
+             "|---|---|---|---|---|---|---|"]
+    for r in results:
+        if "error" in r:
+            lines.append(f"| {r['case']} | | | | {r['error']} | | {r['seconds']:.0f} |")
+            continue
+        rms = f"{r['rms_before']:.2f}σ → {_fmt(r['rms_after'], '.2f')}σ"
+        lines.append(f"| {r['case']} | {r['true']} | {_fmt(r['score_rank'])}/{r['n_physical']} | "
+                     f"{_fmt(r['rank'])}/{r['n_candidates']} | {r['winner'] or 'none'} | {rms} | "
+                     f"{r['seconds']:.0f} |")
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,270 @@
+"""Shared pieces of the diagnosis tests: tiny scenes with one hidden effect, data simulated by
+physdsl itself, fits shared within a module.
+
+A case is a scene text with the hidden effect written in (``truth_text``) and the same scene
+without it (``naive_text``). Data: the truth scene is compiled against placeholder data at
+the measurement times, rolled out at known values, and seeded Gaussian noise is added; the
+naive scene is then fitted to those data (MAP + Laplace, the fast backend ``diagnose``
+itself refits with). Compiling the physics dominates the cost, so every fit is made once per
+module (fixtures) and the persistent XLA cache (a temporary folder, this session only) lets
+identical computations of separately loaded copies of a scene reuse their executables.
+"""
+from __future__ import annotations
+
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import jax
+import numpy as np
+import pytest
+
+import physdsl  # noqa: F401 - float64
+
+_CACHE_DIR = tempfile.mkdtemp(prefix="physdsl-diagnose-tests-xla-")
+jax.config.update("jax_compilation_cache_dir", _CACHE_DIR)
+jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+
+
+def write_csv(path: Path, times, values, name: str) -> Path:
+    """``t,body,x,y,z`` rows for (N, 3) values, or ``t,joint,angle`` rows for (N, 1)."""
+    values = np.asarray(values)
+    if values.shape[1] == 3:
+        lines = ["t,body,x,y,z"] + [f"{t:.6f},{name},{a:.10g},{b:.10g},{c:.10g}"
+                                     for t, (a, b, c) in zip(times, values)]
+    else:
+        lines = ["t,joint,angle"] + [f"{t:.6f},{name},{a:.10g}" for t, (a,) in zip(times, values)]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@dataclass(frozen=True)
+class Data:
+    """One observation's data file: ``file`` holds ``quantity`` of ``name``."""
+
+    file: str
+    name: str  # body or joint
+    quantity: str  # "position" | "angle"
+    noise: float  # SI standard deviation of the added noise
+
+
+def load_scene(folder: Path, text: str, name: str = "scene.phys"):
+    """Write ``text`` as ``folder/name`` and load it (the data files are already there)."""
+    from physdsl.syntax import load
+
+    path = folder / name
+    path.write_text(text)
+    return load(path)
+
+
+def fit(model, seed: int = 0):
+    """The fast posterior used throughout: MAP from two starts with a Laplace approximation."""
+    return model.infer(backend="map", chains=2, warmup=200, samples=200, seed=seed,
+                       progress=False)
+
+
+def physical_order(diag) -> list[str]:
+    """``effect@target`` of the physical candidates in the order of their score tests."""
+    rows = sorted((r for r in diag.ranking if r.kind == "effect"),
+                  key=lambda r: (r.log_p, -r.statistic))
+    return [f"{r.effect}@{r.target}" for r in rows]
+
+
+def interval(idata, name: str, q=(0.05, 0.95)) -> tuple[float, float]:
+    """Central 90% interval of a scalar unknown's posterior."""
+    v = np.asarray(idata.posterior[name].values).ravel()
+    return float(np.quantile(v, q[0])), float(np.quantile(v, q[1]))
+
+
+def run_cli(args, capsys) -> tuple[int, str, str]:
+    """Run ``physdsl ARGS`` in-process; (exit code, stdout, stderr)."""
+    from physdsl.cli import main
+
+    code = main([str(a) for a in args])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+# -- cases: a naive scene, the truth with one hidden effect, and its data -------------------
+
+PROJECTILE = """\
+scene throw {
+  world {
+    timestep: 20 ms
+    duration: 2 s
+    integrator: rk4
+  }
+  body ball {
+    shape: sphere(radius: 5 cm)
+    mass: 200 g
+    position: (0, 0, 1) m
+    velocity ~ normal((3, 0, 12) m/s, 2 m/s)
+    angular_velocity: (0, 0, 0) rad/s
+  }
+  observe ball.position from "data.csv" where body == "ball" { noise: 5 mm }
+}
+"""
+
+PENDULUM = """\
+scene swing {
+  world {
+    timestep: 10 ms
+    duration: 1.5 s
+    integrator: rk4
+  }
+  body bob {
+    shape: sphere(radius: 3 cm)
+    mass: 200 g
+    position: (0, 0, 0.5) m
+  }
+  joint hinge: hinge(world -> bob) {
+    axis: (0, -1, 0)
+    anchor: (0, 0, 1) m
+    initial ~ normal(40 deg, 10 deg)
+    initial_velocity: 0 rad/s
+  }
+  observe hinge.angle from "joints.csv" where joint == "hinge" { noise: 3 mrad }
+}
+"""
+
+
+@dataclass(frozen=True)
+class Case:
+    """A scene without the hidden effect and the values the data are simulated at.
+
+    The truth scene is the naive one with ``effect`` on ``target`` added by ``with_effect``
+    (its strength an unknown with the library prior): the very scene the refit uses, so the
+    data are exactly what the corrected model can express, and its rollout compiles once.
+    """
+
+    naive: str
+    effect: str
+    target: tuple[str, ...]
+    strength: float | tuple  # SI value of the hidden effect's strength parameter
+    truth: dict  # values of the naive scene's unknowns
+    times: tuple[float, ...]
+    data: tuple[Data, ...]
+    seed: int = 1
+
+    @property
+    def key(self) -> str:
+        return f"{self.effect}@{','.join(self.target)}"
+
+
+def _throw_times():
+    return tuple(np.linspace(0.0, 2.0, 41))
+
+
+def _swing_times():
+    return tuple(np.linspace(0.0, 1.5, 76))
+
+
+BALL = (Data("data.csv", "ball", "position", 0.005),)
+HINGE = (Data("joints.csv", "hinge", "angle", 0.003),)
+THROW = {"ball.velocity": (3.2, 0.3, 12.1)}
+
+CASES = {
+    "quadratic_drag": Case(PROJECTILE, "quadratic_drag", ("ball",), 4e-4, THROW, _throw_times(), BALL),
+    "linear_drag": Case(PROJECTILE, "linear_drag", ("ball",), 4e-3, THROW, _throw_times(), BALL),
+    "wind": Case(PROJECTILE, "wind", ("ball",), (0.0, 1.0, 0.0), THROW, _throw_times(), BALL),
+    "joint_damping": Case(PENDULUM, "joint_damping", ("hinge",), 5e-3, {"hinge.initial": 0.7},
+                          _swing_times(), HINGE, seed=2),
+    "joint_friction": Case(PENDULUM, "joint_friction", ("hinge",), 3e-3, {"hinge.initial": 0.7},
+                           _swing_times(), HINGE, seed=3),
+}
+
+
+def truth_scene(folder: Path, case: Case):
+    """The naive scene of ``case`` with the hidden effect added (strength unknown), loaded."""
+    from physdsl.diagnose.candidates import Candidate
+    from physdsl.diagnose.rank import with_effect
+
+    naive = load_scene(folder, case.naive, "naive.phys")
+    text = with_effect(naive, Candidate("effect", case.effect, case.target))
+    return load_scene(folder, text, "truth.phys")
+
+
+def make_case(folder: Path, case: Case, extra: dict | None = None, **faults):
+    """Write ``case``'s data into ``folder``; returns (naive Scene, truth Scene, truth values).
+
+    ``extra`` adds or overrides truth values (e.g. a vector wind velocity); ``faults`` go to
+    ``simulate_data`` (sensor offset / delay)."""
+    from physdsl.compile import Model
+    from physdsl.diagnose.rank import unknown_key
+    from physdsl.diagnose.candidates import Candidate
+
+    folder.mkdir(parents=True, exist_ok=True)
+    for d in case.data:  # placeholders so the scenes load
+        write_csv(folder / d.file, case.times, np.zeros((len(case.times),
+                  3 if d.quantity == "position" else 1)), d.name)
+    truth = truth_scene(folder, case)
+    values = {k: np.asarray(v, float) for k, v in case.truth.items()}
+    values[unknown_key(truth, Candidate("effect", case.effect, case.target))] = np.asarray(case.strength)
+    values.update({k: np.asarray(v, float) for k, v in (extra or {}).items()})
+    simulate_data(folder, Model(truth), values, case, **faults)
+    return load_scene(folder, case.naive, "naive.phys"), values
+
+
+def simulate_data(folder: Path, model, values: dict, case: Case, offset=None, delay=0.0) -> None:
+    """Noisy data of ``model`` at ``values`` into ``case``'s files, seeded Gaussian noise.
+
+    ``offset`` (observation name -> (D,) constant) and ``delay`` (seconds: the sensor reports
+    the state at ``t - delay``) simulate sensor faults."""
+    times = np.asarray(case.times)
+    pred = {k: np.asarray(v) for k, v in model.predict(values).items()}
+    rng = np.random.default_rng(case.seed)
+    for d in case.data:
+        key = f"{d.name}.{d.quantity}"
+        clean = pred[key]
+        if delay:
+            clean = np.stack([np.interp(times - delay, times, clean[:, a]) for a in range(clean.shape[1])],
+                             axis=1)
+        noisy = clean + rng.normal(0.0, d.noise, clean.shape)
+        if offset and key in offset:
+            noisy = noisy + np.asarray(offset[key])
+        write_csv(folder / d.file, times, noisy, d.name)
+
+
+@dataclass
+class Fitted:
+    """A case fitted without its hidden effect: the Model, posterior, check report, diagnosis."""
+
+    folder: Path
+    case: Case
+    values: dict
+    model: object
+    idata: object
+    report: object
+    diagnosis: object
+
+
+def fit_case(folder: Path, case: Case, confirm_top: int = 0, extra=None, **faults) -> Fitted:
+    """Simulate, fit the naive scene, check it and diagnose it (score tests; refits if asked)."""
+    from physdsl.compile import Model
+    from physdsl.diagnose.rank import diagnose
+    from physdsl.diagnose.workflow import check_model
+
+    naive, values = make_case(folder, case, extra, **faults)
+    model = Model(naive)
+    idata = fit(model)
+    report = check_model(model, idata)
+    diag = diagnose(model, idata, confirm_top=confirm_top, check_report=report)
+    return Fitted(folder, case, values, model, idata, report, diag)
+
+
+_FITTED: dict = {}
+
+
+@pytest.fixture(scope="session")
+def fitted(tmp_path_factory):
+    """``fitted(name)``: the case ``CASES[name]`` fitted and diagnosed once per session."""
+    def get(name: str) -> Fitted:
+        if name not in _FITTED:
+            _FITTED[name] = fit_case(tmp_path_factory.mktemp(name), CASES[name])
+        return _FITTED[name]
+    return get
+
+
+@pytest.fixture
+def cli(capsys):
+    return lambda *args: run_cli(args, capsys)
