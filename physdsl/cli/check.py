@@ -21,9 +21,9 @@ def register(app: typer.Typer) -> None:
         from ..infer.output import load_run
         from ..syntax import load
 
-        model = Model(load(scene))
-        idata, _ = load_run(posterior)
+        idata, _ = load_run(posterior)  # bad inputs fail before anything compiles
         io.prepare_outdir(out, force=force)
+        model = Model(load(scene))
         report = model.check(idata, outdir=out, windows=windows)
         typer.echo(report.text())
         typer.echo(f"wrote {out}/report.json, report.md, index.html")

@@ -22,9 +22,9 @@ def register(app: typer.Typer) -> None:
         from ..infer.output import load_run
         from ..syntax import load
 
-        model = Model(load(scene))
-        idata, _ = load_run(posterior)
+        idata, _ = load_run(posterior)  # bad inputs fail before anything compiles
         io.prepare_outdir(out, force=force)
+        model = Model(load(scene))
         d = run(model, idata, confirm_top=confirm, outdir=out)
         typer.echo(d.table())
         typer.echo(d.verdict)

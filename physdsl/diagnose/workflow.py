@@ -17,7 +17,13 @@ MAX_DRAWS = 200
 
 def posterior_draws(model, idata, max_draws: int = MAX_DRAWS) -> dict[str, np.ndarray]:
     """Up to ``max_draws`` joint draws of every unknown: name -> (S, *shape), evenly thinned."""
+    from ..errors import UsageError
+
     post = idata.posterior
+    missing = [u.name for u in model.unknowns if u.name not in post]
+    if missing:
+        raise UsageError(f"the posterior has no draws of {', '.join(missing)}",
+                         hint="give the run folder of `physdsl infer` on this same scene")
     out = {}
     for u in model.unknowns:
         arr = np.asarray(post[u.name].values)
