@@ -18,6 +18,8 @@ def register(app: typer.Typer) -> None:
         warmup: int = typer.Option(300, "--warmup", min=0),
         samples: int = typer.Option(300, "--samples", min=1),
         seed: int = typer.Option(0, "--seed"),
+        confirm: int = typer.Option(2, "--confirm", min=1,
+                                    help="Refit the best N candidates per round to confirm one."),
         force: bool = typer.Option(False, "--force", help="Overwrite a non-empty output folder."),
     ) -> None:
         """The diagnosis loop: stops when residuals reach the noise or nothing in the library helps."""
@@ -26,7 +28,8 @@ def register(app: typer.Typer) -> None:
 
         get_backend(backend)
         rounds = run(scene, out, max_rounds=max_rounds, backend=backend, chains=chains,
-                     warmup=warmup, samples=samples, seed=seed, force=force, echo=typer.echo)
+                     warmup=warmup, samples=samples, seed=seed, force=force,
+                     confirm_top=confirm, echo=typer.echo)
         typer.echo("\nround  added                              RMS (noise units)   ELPD")
         for r in rounds:
             add = f"{r.added['effect']} on {r.added['target']}" if r.added else "-"

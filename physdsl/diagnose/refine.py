@@ -29,7 +29,7 @@ class Round:
 
 def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", chains: int = 2,
            warmup: int = 300, samples: int = 300, seed: int = 0, force: bool = False,
-           echo=print) -> list[Round]:
+           confirm_top: int = 2, echo=print) -> list[Round]:
     """Fit, check, diagnose and extend the scene until it explains the data; returns the rounds."""
     from .rank import combined_loo, diagnose, with_effect, _load_text  # noqa: F401
 
@@ -56,7 +56,8 @@ def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", cha
                        else "stopped: --max-rounds reached")
             rounds.append(Round(k, current, float(report.rms_sigma), elpd, added, verdict))
             break
-        diag = diagnose(model, idata, outdir=rdir / "diagnosis", check_report=report)
+        diag = diagnose(model, idata, confirm_top=max(confirm_top, 1), outdir=rdir / "diagnosis",
+                        check_report=report)
         echo(f"round {k}: {diag.verdict}")
         echo(diag.table())
         rounds.append(Round(k, current, float(report.rms_sigma), elpd, added, diag.verdict))
