@@ -109,13 +109,13 @@ PENDULUM = """\
 scene swing {
   world {
     timestep: 10 ms
-    duration: 1.5 s
+    duration: 3 s
     integrator: rk4
   }
   body bob {
     shape: sphere(radius: 3 cm)
     mass: 200 g
-    position: (0, 0, 0.5) m
+    position: (0, 0, 0.75) m
   }
   joint hinge: hinge(world -> bob) {
     axis: (0, -1, 0)
@@ -124,6 +124,93 @@ scene swing {
     initial_velocity: 0 rad/s
   }
   observe hinge.angle from "joints.csv" where joint == "hinge" { noise: 3 mrad }
+}
+"""
+
+
+# A ball dropped on a floor (bounces: restitution); semi-implicit Euler for contact.
+BOUNCE = """\
+scene bounce {
+  world {
+    timestep: 5 ms
+    duration: 1.2 s
+  }
+  param h0 ~ normal(0.8 m, 5 cm)
+  ground floor { normal: (0, 0, 1)  point: (0, 0, 0) m }
+  body ball {
+    shape: sphere(radius: 5 cm)
+    mass: 60 g
+    position: (0, 0, h0)
+    velocity: (0, 0, 0) m/s
+  }
+  observe ball.position from "data.csv" where body == "ball" { noise: 3 mm }
+}
+"""
+
+# A block pushed along a floor (frictionless in the naive scene).
+SLIDE = """\
+scene slide {
+  world {
+    timestep: 5 ms
+    duration: 0.8 s
+  }
+  ground floor { normal: (0, 0, 1)  point: (0, 0, 0) m }
+  body block {
+    shape: box(size: (10, 10, 10) cm)
+    mass: 500 g
+    position: (0, 0, 5) cm
+    velocity ~ normal((2, 0, 0) m/s, 0.5 m/s)
+    angular_velocity: (0, 0, 0) rad/s
+  }
+  observe block.position from "data.csv" where body == "block" { noise: 2 mm }
+}
+"""
+
+# A ball rolling on a floor with friction (it rolls without slipping).
+ROLL = """\
+scene roll {
+  world {
+    timestep: 5 ms
+    duration: 1.5 s
+  }
+  ground floor { normal: (0, 0, 1)  point: (0, 0, 0) m }
+  body ball {
+    shape: sphere(radius: 5 cm)
+    mass: 200 g
+    position: (0, 0, 5) cm
+    velocity ~ normal((1.5, 0, 0) m/s, 0.3 m/s)
+    angular_velocity: (0, 30, 0) rad/s
+  }
+  contact floor, ball { friction: 0.5 }
+  observe ball.position from "data.csv" where body == "ball" { noise: 2 mm }
+}
+"""
+
+# A block on a vertical slider hanging from a spring (undamped in the naive scene).
+SPRING = """\
+scene bob {
+  world {
+    timestep: 10 ms
+    duration: 3 s
+    integrator: rk4
+  }
+  body block {
+    shape: box(size: (10, 10, 10) cm)
+    mass: 500 g
+    position: (0, 0, 1) m
+  }
+  joint guide: slider(world -> block) {
+    axis: (0, 0, 1)
+    initial ~ normal(-7 cm, 3 cm)
+    initial_velocity: 0 m/s
+  }
+  effect spring on block {
+    stiffness: 40 N/m
+    rest_length: 0.4 m
+    anchor: (0, 0, 1.6) m
+    attachment: (0, 0, 5) cm
+  }
+  observe block.position from "data.csv" where body == "block" { noise: 1 mm }
 }
 """
 
@@ -156,7 +243,7 @@ def _throw_times():
 
 
 def _swing_times():
-    return tuple(np.linspace(0.0, 1.5, 76))
+    return tuple(np.linspace(0.0, 3.0, 151))
 
 
 BALL = (Data("data.csv", "ball", "position", 0.005),)
@@ -167,21 +254,45 @@ CASES = {
     "quadratic_drag": Case(PROJECTILE, "quadratic_drag", ("ball",), 4e-4, THROW, _throw_times(), BALL),
     "linear_drag": Case(PROJECTILE, "linear_drag", ("ball",), 4e-3, THROW, _throw_times(), BALL),
     "wind": Case(PROJECTILE, "wind", ("ball",), (0.0, 1.0, 0.0), THROW, _throw_times(), BALL),
-    "joint_damping": Case(PENDULUM, "joint_damping", ("hinge",), 5e-3, {"hinge.initial": 0.7},
+    "joint_damping": Case(PENDULUM, "joint_damping", ("hinge",), 4e-3, {"hinge.initial": 0.7},
                           _swing_times(), HINGE, seed=2),
     "joint_friction": Case(PENDULUM, "joint_friction", ("hinge",), 3e-3, {"hinge.initial": 0.7},
                            _swing_times(), HINGE, seed=3),
+    "restitution": Case(BOUNCE, "restitution", ("floor", "ball"), 0.8, {"h0": 0.8},
+                        tuple(np.linspace(0.0, 1.2, 121)), (Data("data.csv", "ball", "position", 0.003),), seed=4),
+    "contact_friction": Case(SLIDE, "contact_friction", ("floor", "block"), 0.2,
+                             {"block.velocity": (2.1, 0.0, 0.0)}, tuple(np.linspace(0.0, 0.8, 81)),
+                             (Data("data.csv", "block", "position", 0.002),), seed=5),
+    "rolling_resistance": Case(ROLL, "rolling_resistance", ("floor", "ball"), 2e-3,
+                               {"ball.velocity": (1.5, 0.0, 0.0)}, tuple(np.linspace(0.0, 1.5, 76)),
+                               (Data("data.csv", "ball", "position", 0.002),), seed=6),
+    "damper": Case(SPRING, "damper", ("block",), 0.08, {"guide.initial": -0.07},
+                   tuple(np.linspace(0.0, 3.0, 151)), (Data("data.csv", "block", "position", 0.001),),
+                   seed=7),
+}
+
+# Candidates that act exactly like the true one in a case (same column of the score test):
+# linear drag on a pendulum bob or on a slider's block is joint damping, and along the spring
+# line a damper is both.
+EQUIVALENT = {
+    "joint_damping": {"linear_drag@bob"},
+    "damper": {"joint_damping@guide", "linear_drag@block"},
 }
 
 
 def truth_scene(folder: Path, case: Case):
     """The naive scene of ``case`` with the hidden effect added (strength unknown), loaded."""
-    from physdsl.diagnose.candidates import Candidate
     from physdsl.diagnose.rank import with_effect
 
     naive = load_scene(folder, case.naive, "naive.phys")
-    text = with_effect(naive, Candidate("effect", case.effect, case.target))
-    return load_scene(folder, text, "truth.phys")
+    return load_scene(folder, with_effect(naive, candidate(naive, case)), "truth.phys")
+
+
+def candidate(naive, case: Case):
+    """The diagnosis candidate for ``case``'s hidden effect (a damper gets the spring's anchors)."""
+    from physdsl.diagnose.candidates import physics_candidates
+
+    return next(c for c in physics_candidates(naive) if c.key == case.key)
 
 
 def make_case(folder: Path, case: Case, extra: dict | None = None, **faults):
@@ -190,8 +301,6 @@ def make_case(folder: Path, case: Case, extra: dict | None = None, **faults):
     ``extra`` adds or overrides truth values (e.g. a vector wind velocity); ``faults`` go to
     ``simulate_data`` (sensor offset / delay)."""
     from physdsl.compile import Model
-    from physdsl.diagnose.rank import unknown_key
-    from physdsl.diagnose.candidates import Candidate
 
     folder.mkdir(parents=True, exist_ok=True)
     for d in case.data:  # placeholders so the scenes load
@@ -199,7 +308,7 @@ def make_case(folder: Path, case: Case, extra: dict | None = None, **faults):
                   3 if d.quantity == "position" else 1)), d.name)
     truth = truth_scene(folder, case)
     values = {k: np.asarray(v, float) for k, v in case.truth.items()}
-    values[unknown_key(truth, Candidate("effect", case.effect, case.target))] = np.asarray(case.strength)
+    values[f"{case.key}.{truth.effect_library[case.effect].strength.name}"] = np.asarray(case.strength)
     values.update({k: np.asarray(v, float) for k, v in (extra or {}).items()})
     simulate_data(folder, Model(truth), values, case, **faults)
     return load_scene(folder, case.naive, "naive.phys"), values
@@ -257,11 +366,12 @@ _FITTED: dict = {}
 
 @pytest.fixture(scope="session")
 def fitted(tmp_path_factory):
-    """``fitted(name)``: the case ``CASES[name]`` fitted and diagnosed once per session."""
-    def get(name: str) -> Fitted:
-        if name not in _FITTED:
-            _FITTED[name] = fit_case(tmp_path_factory.mktemp(name), CASES[name])
-        return _FITTED[name]
+    """``fitted(name, confirm_top=0)``: ``CASES[name]`` fitted and diagnosed once per session."""
+    def get(name: str, confirm_top: int = 0) -> Fitted:
+        if (name, confirm_top) not in _FITTED:
+            _FITTED[name, confirm_top] = fit_case(tmp_path_factory.mktemp(name), CASES[name],
+                                                  confirm_top)
+        return _FITTED[name, confirm_top]
     return get
 
 

@@ -14,11 +14,10 @@ import numpy as np
 import pytest
 
 from physdsl.compile import Model
-from physdsl.diagnose.candidates import Candidate
 from physdsl.diagnose.rank import _load_text, unknown_key, with_effect
 from physdsl.diagnose.workflow import check_model
 
-from .conftest import fit, interval, physical_order
+from .conftest import candidate, fit, interval, physical_order
 
 
 def _row(diag, key):
@@ -27,7 +26,7 @@ def _row(diag, key):
 
 def refit_with(f):
     """The naive scene of fitted case ``f`` with its true effect added, fitted and checked."""
-    cand = Candidate("effect", f.case.effect, f.case.target)
+    cand = candidate(f.model.scene, f.case)
     new = Model(_load_text(f.model.scene, with_effect(f.model.scene, cand)))
     idata = fit(new)
     return new, idata, check_model(new, idata), unknown_key(f.model.scene, cand)
