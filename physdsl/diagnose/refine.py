@@ -128,4 +128,3 @@ def _plot(out: Path, rounds: list[Round]) -> None:
     fig.tight_layout()
     with io.atomic_path(out / "refine.png") as tmp:
         fig.savefig(tmp, format="png", dpi=100)
-    del np
