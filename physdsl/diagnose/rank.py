@@ -305,6 +305,14 @@ def diagnose(model, idata, *, confirm_top: int = 2, alpha: float = 0.05, outdir=
         verdict = (f"missing effect: {winner.effect} on {winner.target} (score p = {winner.p_value:.2g}; "
                    f"ΔELPD {winner.delta_elpd:+.1f} ± {winner.delta_elpd_se:.1f}; residual RMS "
                    f"{winner.rms_before:.2f}σ → {winner.rms_after:.2f}σ)")
+        rivals = [r for r in ranked if r is not winner and r.confirmed
+                  and winner.delta_elpd - r.delta_elpd < ELPD_TIE
+                  and abs((winner.delta_lfo or 0.0) - (r.delta_lfo or 0.0)) < ELPD_TIE]
+        if rivals:
+            verdict += ("; these data barely tell it from " +
+                        ", ".join(f"{r.effect} on {r.target}" for r in rivals) +
+                        " (ΔELPD and ΔLFO within 4): a recording over a wider range of speeds or "
+                        "longer would separate them")
     elif top is not None and top.kind == "sensor" and top.p_value < alpha / n_tests:
         verdict = (f"the misfit looks like a sensor fault: {top.effect} on {top.target} "
                    f"(p = {top.p_value:.2g}), not a missing physical effect")
