@@ -11,6 +11,13 @@ from .model import Model
 from .spatial import cross_force
 
 
+def generalized_forces(model: Model, kin: Kin, load):
+    """tau (nv,) of a Load: joint forces plus J^T of each body's spatial force at the origin."""
+    n_origin = load.torque + jnp.cross(kin.com, load.force)
+    f = jnp.concatenate([n_origin, load.force], -1)
+    return load.joint + jnp.einsum("bkn,bk->n", kin.jac, f)
+
+
 def mass_matrix(model: Model, kin: Kin):
     """Joint-space mass matrix M (nv, nv) by the composite-rigid-body algorithm."""
     nv = model.nv

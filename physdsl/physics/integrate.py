@@ -1,7 +1,9 @@
-"""Time stepping: one pure ``step(model, prm, state, t)`` by semi-implicit Euler or RK4.
+"""Time stepping: one pure ``step(model, prm, state, t, h)`` by semi-implicit Euler or RK4.
 
-Forces come from the registered effects; contact-free and compliant-contact accelerations use
-the articulated-body algorithm; the LCP contact model needs M (CRBA) and the bias (RNEA).
+Effects give one summed Load per evaluation. Scenes of free bodies use the Newton-Euler fast
+path (``free.py``); others the articulated-body algorithm over the tree. The LCP contact model
+needs the mass matrix (CRBA, or block-diagonal for free bodies) and runs only when some
+candidate is within the contact margin (``lax.cond``; under ``vmap`` both branches run).
 RK4 is only used without contacts (contacts are non-smooth, so scenes with contact candidates
 fall back to semi-implicit Euler; ``Simulator.integrator`` says which one runs).
 """
@@ -13,8 +15,9 @@ import jax
 import jax.numpy as jnp
 
 from . import contact_stage as cs
-from .dynamics import bias_forces, forward_dynamics, mass_matrix
-from .effects import EFFECTS, Ctx
+from .dynamics import forward_dynamics, generalized_forces, mass_matrix
+from .effects import EFFECTS, Ctx, zero_load
+from .free import free_accel, free_kinematics, free_mass_matrix
 from .kinematics import forward_kinematics, integrate_q
 from .model import Model
 
@@ -35,71 +38,97 @@ def total_gravity(model: Model, prm: dict):
     return g
 
 
-def applied_forces(model: Model, prm: dict, kin, state: State, t, t_step):
-    """Sum of the generalized forces of every force-stage effect."""
+def applied_load(model: Model, prm: dict, kin, state: State, t, t_step):
+    """Sum of the Loads of every force-stage effect."""
     ctx = Ctx(kin, prm, t, t_step, total_gravity(model, prm), state.contact_force,
               state.contact_normal)
-    tau = jnp.zeros(model.nv, dtype=kin.v.dtype)
+    load = zero_load(model, kin.com.dtype)
     for s in model.sites:
         eff = EFFECTS[s.effect]
         if eff.stage == "force":
-            tau = tau + eff.force(model, s, prm["effects"][s.index], ctx)
-    return tau
+            load = load + eff.force(model, s, prm["effects"][s.index], ctx)
+    return load
+
+
+def kinematics(model: Model, prm: dict, q, v, with_jac: bool = False):
+    """Kinematics by the free-body fast path when it applies, else over the tree."""
+    if model.free_bodies is not None:
+        return free_kinematics(model, prm, q, v, with_jac)
+    return forward_kinematics(model, prm, q, v)
+
+
+def accel(model: Model, prm: dict, kin, load, tau=None):
+    """Joint accelerations under ``load`` plus extra generalized forces ``tau``."""
+    if model.free_bodies is not None:
+        return free_accel(model, prm, kin, load.force, load.torque,
+                          load.joint if tau is None else load.joint + tau)
+    gen = generalized_forces(model, kin, load)
+    return forward_dynamics(model, kin, gen if tau is None else gen + tau)
+
+
+def joint_mass_matrix(model: Model, prm: dict, kin):
+    """M (nv, nv) at the state of ``kin``."""
+    if model.free_bodies is not None:
+        return free_mass_matrix(model, prm, kin)
+    return mass_matrix(model, kin)
 
 
 def _accel(model, prm, q, v, state, t, t_step):
-    """Joint accelerations (ABA), with compliant contact forces if any; and contact outputs."""
-    kin = forward_kinematics(model, prm, q, v)
-    tau = applied_forces(model, prm, kin, state, t, t_step)
+    """Accelerations with compliant contact forces if any; and the contact outputs."""
+    kin = kinematics(model, prm, q, v, with_jac=bool(model.ncon))
+    load = applied_load(model, prm, kin, state, t, t_step)
     cf, cn = state.contact_force, state.contact_normal
+    tau = None
     if model.ncon:
         con = cs.detect_all(model, prm, kin)
-        tau_c, cf = cs.compliant_tau(model, con, mass_matrix(model, kin), v)
-        tau = tau + tau_c
+        tau, cf = cs.compliant_tau(model, con, joint_mass_matrix(model, prm, kin), v)
         cn = con.normal
-    return forward_dynamics(model, kin, tau), cf, cn
+    return accel(model, prm, kin, load, tau), cf, cn
+
+
+def _lcp_step(model, prm, state, t, h):
+    q, v = state.q, state.v
+    kin = kinematics(model, prm, q, v, with_jac=True)
+    load = applied_load(model, prm, kin, state, t, t)
+    v_free = v + h * accel(model, prm, kin, load)
+    con = cs.detect_all(model, prm, kin)
+
+    def contact(_):
+        return cs.lcp_velocity(model, con, joint_mass_matrix(model, prm, kin), v, v_free, h)
+
+    def apart(_):
+        return v_free, jnp.zeros(model.ncon, v.dtype)
+
+    v_next, cf = jax.lax.cond(jnp.any(con.active), contact, apart, None)
+    return State(integrate_q(model, q, v_next, h), v_next, cf, con.normal)
 
 
 def step(model: Model, prm: dict, state: State, t, h):
     """Advance ``state`` from time t by h (one substep)."""
-    q, v = state.q, state.v
     if model.ncon and model.contact_model == "lcp":
-        kin = forward_kinematics(model, prm, q, v)
-        tau = applied_forces(model, prm, kin, state, t, t)
-        M = mass_matrix(model, kin)
-        v_free = v + h * jnp.linalg.solve(M, tau - bias_forces(model, kin))
-        con = cs.detect_all(model, prm, kin)
-        v_next, cf = cs.lcp_velocity(model, con, M, v, v_free, h)
-        return State(integrate_q(model, q, v_next, h), v_next, cf, con.normal)
+        return _lcp_step(model, prm, state, t, h)
     if model.integrator == "rk4" and not model.ncon:
         return _rk4(model, prm, state, t, h)
-    a, cf, cn = _accel(model, prm, q, v, state, t, t)
-    v_next = v + h * a
-    return State(integrate_q(model, q, v_next, h), v_next, cf, cn)
-
-
-_RK4_C = (0.0, 0.5, 0.5, 1.0)
-_RK4_W = (1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0)
+    a, cf, cn = _accel(model, prm, state.q, state.v, state, t, t)
+    v_next = state.v + h * a
+    return State(integrate_q(model, state.q, v_next, h), v_next, cf, cn)
 
 
 def _rk4(model: Model, prm: dict, state: State, t, h):
     """Classic RK4 on (q, v), positions advanced on the manifold by stage velocities (as MuJoCo).
 
-    Stage i evaluates a_i at (q (+) c_i h v_{i-1}, v + c_i h a_{i-1}); the four stages run in a
-    scan so the dynamics are traced and compiled once.
+    Stage i evaluates a_i at (q (+) c_i h v_{i-1}, v + c_i h a_{i-1}); the four stages are
+    unrolled (an inner scan compiles no faster and costs loop overhead in every step).
     """
     q, v = state.q, state.v
-
-    def stage(carry, cw):
-        v_prev, a_prev, v_sum, a_sum = carry
-        ci, wi = cw[0], cw[1]
-        qi = integrate_q(model, q, v_prev, ci * h)
-        vi = v + ci * h * a_prev
-        ai, _, _ = _accel(model, prm, qi, vi, state, t + ci * h, t)
-        return (vi, ai, v_sum + wi * vi, a_sum + wi * ai), None
-
-    z = jnp.zeros_like(v)
-    cw = jnp.array([_RK4_C, _RK4_W], dtype=v.dtype).T
-    (_, _, v_avg, a_avg), _ = jax.lax.scan(stage, (v, z, z, z), cw)
+    a1, _, _ = _accel(model, prm, q, v, state, t, t)
+    v2 = v + 0.5 * h * a1
+    a2, _, _ = _accel(model, prm, integrate_q(model, q, v, 0.5 * h), v2, state, t + 0.5 * h, t)
+    v3 = v + 0.5 * h * a2
+    a3, _, _ = _accel(model, prm, integrate_q(model, q, v2, 0.5 * h), v3, state, t + 0.5 * h, t)
+    v4 = v + h * a3
+    a4, _, _ = _accel(model, prm, integrate_q(model, q, v3, h), v4, state, t + h, t)
+    v_avg = (v + 2.0 * v2 + 2.0 * v3 + v4) / 6.0
+    a_avg = (a1 + 2.0 * a2 + 2.0 * a3 + a4) / 6.0
     return State(integrate_q(model, q, v_avg, h), v + h * a_avg, state.contact_force,
                  state.contact_normal)

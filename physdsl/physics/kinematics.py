@@ -17,17 +17,23 @@ from .spatial import (cross_motion, normalize, quat_axis_angle, quat_conj, quat_
 
 
 class Kin(NamedTuple):
+    """Kinematics at one state. The first eight fields exist for every scene; the tree fields
+    (spatial velocities, Jacobians, inertias, motion subspaces) are None on the free-body path
+    (``free_kinematics``), where ``jac`` is filled only when contacts need it."""
+
     pos: jnp.ndarray  # (B, 3) body frame origins, world
     quat: jnp.ndarray  # (B, 4) body -> world
     rot: jnp.ndarray  # (B, 3, 3)
     com: jnp.ndarray  # (B, 3) centres of mass, world
-    vel: jnp.ndarray  # (B, 6) spatial velocities (omega, v_O)
-    jac: jnp.ndarray  # (B, 6, nv) spatial Jacobians: vel[i] = jac[i] @ v
-    bias_acc: jnp.ndarray  # (B, 6) c_i = dS_i/dt qdot_i
-    inertia: jnp.ndarray  # (B, 6, 6) spatial inertias at the origin
-    S: tuple  # per body (6, nv_i) motion subspace
+    ang: jnp.ndarray  # (B, 3) world angular velocities
+    vcom: jnp.ndarray  # (B, 3) world velocities of the centres of mass
     q: jnp.ndarray
     v: jnp.ndarray
+    vel: jnp.ndarray | None = None  # (B, 6) spatial velocities (omega, v_O)
+    jac: jnp.ndarray | None = None  # (B, 6, nv) spatial Jacobians: vel[i] = jac[i] @ v
+    bias_acc: jnp.ndarray | None = None  # (B, 6) c_i = dS_i/dt qdot_i
+    inertia: jnp.ndarray | None = None  # (B, 6, 6) spatial inertias at the origin
+    S: tuple | None = None  # per body (6, nv_i) motion subspace
 
 
 def forward_kinematics(model: Model, prm: dict, q, v) -> Kin:
@@ -105,20 +111,16 @@ def forward_kinematics(model: Model, prm: dict, q, v) -> Kin:
     com = pos_a + jnp.einsum("bij,bj->bi", rot, prm["com"])
     I_world = rot @ prm["inertia"] @ jnp.swapaxes(rot, -1, -2)
     inertia6 = jnp.stack([spatial_inertia(prm["mass"][i], I_world[i], com[i]) for i in range(B)])
-    return Kin(pos_a, quat_a, rot, com, jnp.stack(vel), jnp.stack(jac), jnp.stack(cacc),
-               inertia6, tuple(S), q, v)
-
-
-def point_jacobian(kin: Kin, body: int, point):
-    """(3, nv) Jacobian of the world velocity of the body-fixed point currently at ``point``."""
-    J = kin.jac[body]
-    return J[3:] - skew(point) @ J[:3]
+    vel_a = jnp.stack(vel)
+    ang = vel_a[:, :3]
+    vcom = vel_a[:, 3:] + jnp.cross(ang, com)
+    return Kin(pos_a, quat_a, rot, com, ang, vcom, q, v, vel_a, jnp.stack(jac), jnp.stack(cacc),
+               inertia6, tuple(S))
 
 
 def point_velocity(kin: Kin, body: int, point):
     """World velocity of the body-fixed point currently at ``point``."""
-    w, vo = kin.vel[body, :3], kin.vel[body, 3:]
-    return vo + jnp.cross(w, point)
+    return kin.vcom[body] + jnp.cross(kin.ang[body], point - kin.com[body])
 
 
 def integrate_q(model: Model, q, v, h):

@@ -79,6 +79,9 @@ class Model:
     dt: float
     substeps: int
     nsteps: int  # recorded steps after t = 0
+    # free bodies in q order when every moving body is free and unjointed (the Newton-Euler
+    # fast path of ``free.py``; every other body is static), else None (tree algorithms)
+    free_bodies: tuple[int, ...] | None = None
 
     @property
     def nbody(self) -> int:
@@ -242,6 +245,7 @@ def build_model(scene: Scene) -> Model:
                          hint="use semi_implicit_euler or rk4")
     if scene.world.contact_model not in ("lcp", "compliant"):
         raise ModelError(f"unknown contact model '{scene.world.contact_model}'", hint="use lcp or compliant")
+    free_bodies = _free_bodies(joints)
     dt = float(scene.world.timestep)
     if not dt > 0:
         raise ModelError("timestep must be positive")
@@ -252,7 +256,29 @@ def build_model(scene: Scene) -> Model:
         nq=qa, nv=va, sites=tuple(sites), pairs=tuple(pairs), ncon=ncon,
         integrator=scene.world.integrator, contact_model=scene.world.contact_model,
         dt=dt, substeps=max(int(scene.world.substeps), 1), nsteps=max(nsteps, 1),
+        free_bodies=free_bodies,
     )
+
+
+def _free_bodies(joints) -> tuple[int, ...] | None:
+    """Free bodies sorted by q address if no body moves through a tree joint, else None."""
+    by_body = {j.body: j for j in joints}
+
+    def is_static(b):
+        while b >= 0:
+            if by_body[b].kind != "fixed":
+                return False
+            b = by_body[b].parent
+        return True
+
+    for j in joints:
+        if j.kind == "fixed":
+            if not is_static(j.body):
+                return None
+        elif j.kind != "free" or j.parent >= 0:
+            return None
+    free = sorted((j for j in joints if j.kind == "free"), key=lambda j: j.qadr)
+    return tuple(j.body for j in free)
 
 
 def _contact_count(contact_mod, ka: str, kb: str) -> int:

@@ -129,14 +129,20 @@ def evaluate_params(scene: Scene, model: Model, values) -> dict:
     effects = []
     for use in scene.effects:
         effects.append({k: evaluate(e, values) for k, e in use.params.items()})
-    return {
-        "mass": jnp.stack(masses), "inertia": jnp.stack(inertias), "com": jnp.stack(coms),
+    inertia = jnp.stack(inertias)
+    out = {
+        "mass": jnp.stack(masses), "inertia": inertia, "com": jnp.stack(coms),
         "volume": jnp.stack([jnp.asarray(v, dtype=float) for v in vols]),
         "size": jnp.stack(csizes),
         "ref_pos": jnp.stack(ref_pos), "ref_quat": jnp.stack(ref_quat),
         "anchor": jnp.stack(anchor), "axis": jnp.stack(axis),
         "q0": cat(q0), "v0": cat(v0), "effects": effects,
     }
+    if model.free_bodies is not None:
+        from .free import free_inverse_inertia
+
+        out["free_inv_inertia"] = free_inverse_inertia(model, inertia)
+    return out
 
 
 def relative_quat(a, b):

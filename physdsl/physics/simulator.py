@@ -1,8 +1,9 @@
 """Simulator: a Scene compiled to a pure, jitted ``simulate(values) -> Rollout``.
 
 The static Model is built once; each call evaluates the params from ``values`` inside the
-traced function, scans ``step`` over the recorded times (``jax.checkpoint`` on each step so
-reverse-mode memory stays O(T) states), and reads body and joint observables from the states.
+traced function, scans ``step`` over the recorded times and reads body and joint observables
+from the states. Derivatives of the trajectory use forward mode for few unknowns
+(``forward_mode``), else reverse mode with ``jax.checkpoint`` on each step (O(T) memory).
 """
 from __future__ import annotations
 
@@ -12,12 +13,17 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.flatten_util import ravel_pytree
 
 from ..scene import Scene
-from .integrate import State, step
-from .kinematics import forward_kinematics
+from .integrate import State, kinematics, step
 from .model import Model, build_model
 from .params import evaluate_params
+
+
+# at most this many scalar unknowns: derivatives of the trajectory by forward mode (see
+# ``forward_mode``); more: reverse mode through a checkpointed scan
+FORWARD_MODE_MAX = 24
 
 
 class Rollout(NamedTuple):
@@ -35,9 +41,9 @@ class Rollout(NamedTuple):
 
 def observe(model: Model, prm: dict, q, v):
     """Body poses/velocities and scene-joint coordinates at one state."""
-    kin = forward_kinematics(model, prm, q, v)
-    w = kin.vel[:, :3]
-    lin = kin.vel[:, 3:] + jnp.cross(w, kin.pos)
+    kin = kinematics(model, prm, q, v)
+    w = kin.ang
+    lin = kin.vcom + jnp.cross(w, kin.pos - kin.com)
     jp, jv = [], []
     for name_idx in range(len(model.joint_names)):
         tj = next((j for j in model.joints if j.scene_joint == name_idx), None)
@@ -73,8 +79,8 @@ class Simulator:
         """The numeric params pytree for ``values`` (masses, inertia, poses, effects, q0, v0)."""
         return evaluate_params(self.scene, self.model, values)
 
-    def _simulate(self, values) -> Rollout:
-        self.trace_count += 1
+    def _trajectory(self, values):
+        """States (q (T+1, nq), v (T+1, nv), contact normal force (T+1, C)) for ``values``."""
         model = self.model
         prm = evaluate_params(self.scene, model, values)
         dtype = prm["ref_pos"].dtype
@@ -87,23 +93,62 @@ class Simulator:
         def substep(state, k):
             return step(model, prm, state, k * h, h), None
 
-        @jax.checkpoint
         def record(state, i):
             if ns == 1:
                 state = step(model, prm, state, i * h, h)
             else:
                 state, _ = jax.lax.scan(substep, state, i * ns + jnp.arange(ns))
-            return state, state
+            return state, (state.q, state.v, state.contact_force)
 
+        if self._reverse:  # reverse mode through the scan: recompute each step, O(T) memory
+            record = jax.checkpoint(record)
         _, traj = jax.lax.scan(record, s0, jnp.arange(model.nsteps))
-        traj = jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a[None], b]), s0, traj)
-        pos, quat, lin, ang, jp, jv = jax.vmap(lambda q, v: observe(model, prm, q, v))(traj.q, traj.v)
-        t = jnp.arange(model.nsteps + 1, dtype=dtype) * model.dt
-        return Rollout(t, traj.q, traj.v, pos, quat, lin, ang, jp, jv, traj.contact_force)
+        first = (s0.q, s0.v, s0.contact_force)
+        return tuple(jnp.concatenate([a[None], b]) for a, b in zip(first, traj))
+
+    def _simulate(self, values) -> Rollout:
+        self.trace_count += 1
+        model = self.model
+        n_in = sum(int(np.size(x)) for x in jax.tree_util.tree_leaves(values)
+                   if jnp.issubdtype(jnp.result_type(x), jnp.floating))
+        self._reverse = not 0 < n_in <= FORWARD_MODE_MAX
+        traj = self._trajectory if self._reverse else forward_mode(self._trajectory)
+        q, v, cf = traj(values)
+        prm = evaluate_params(self.scene, model, values)
+        pos, quat, lin, ang, jp, jv = jax.vmap(lambda q, v: observe(model, prm, q, v))(q, v)
+        t = jnp.arange(model.nsteps + 1, dtype=q.dtype) * model.dt
+        return Rollout(t, q, v, pos, quat, lin, ang, jp, jv, cf)
 
     def simulate(self, values) -> Rollout:
         """Roll the scene out from t = 0 to the last recorded time for the unknowns' ``values``."""
         return self._jit({k: _canonical(v) for k, v in dict(values).items()})
+
+
+def forward_mode(f):
+    """``f(values)`` whose derivatives (jvp, and grad by transposition) come from its forward-mode
+    Jacobian with respect to every float leaf of ``values``.
+
+    The Jacobian is one scan carrying the state and its P tangents, which compiles and runs far
+    faster than reverse mode through a scan of many small steps (whose backward pass splits into
+    hundreds of tiny kernels per step) when P, the number of scalar unknowns, is small.
+    """
+    g = jax.custom_jvp(f)
+
+    @g.defjvp
+    def rule(primals, tangents):
+        (values,), (dvalues,) = primals, tangents
+        keys = [k for k in values if jnp.issubdtype(jnp.result_type(values[k]), jnp.floating)]
+        flat, unravel = ravel_pytree({k: values[k] for k in keys})
+
+        def fx(x):
+            return f({**values, **unravel(x)})
+
+        basis = jnp.eye(flat.size, dtype=flat.dtype)
+        out, jac = jax.vmap(lambda t: jax.jvp(fx, (flat,), (t,)), out_axes=(None, 0))(basis)
+        dx = ravel_pytree({k: dvalues[k] for k in keys})[0]
+        return out, jax.tree_util.tree_map(lambda j: jnp.tensordot(dx, j, axes=1), jac)
+
+    return g
 
 
 def _canonical(x):

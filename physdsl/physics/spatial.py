@@ -22,6 +22,22 @@ def normalize(x, axis=-1):
     return x / jnp.where(n > 0, n, 1.0)
 
 
+def mv(R, x):
+    """R @ x over leading batch axes, as a fused elementwise product and sum (XLA on CPU runs
+    each tiny dot as its own kernel; elementwise products fuse with their neighbours)."""
+    return jnp.sum(R * x[..., None, :], -1)
+
+
+def mtv(R, x):
+    """R^T @ x over leading batch axes (elementwise, see ``mv``)."""
+    return jnp.sum(R * x[..., :, None], -2)
+
+
+def mm(A, B):
+    """A @ B over leading batch axes (elementwise, see ``mv``)."""
+    return jnp.sum(A[..., :, :, None] * B[..., None, :, :], -2)
+
+
 def skew(a):
     """Cross-product matrix: skew(a) @ b == cross(a, b)."""
     z = jnp.zeros_like(a[..., 0])
@@ -83,7 +99,7 @@ def quat_integrate(q, w_local, h):
 
 def rotate(q, x):
     """Rotate vector x by quaternion q."""
-    return quat_to_mat(q) @ x
+    return mv(quat_to_mat(q), x)
 
 
 def cross_motion(v, m):
@@ -102,11 +118,14 @@ def cross_force(v, f):
 
 
 def spatial_inertia(mass, inertia_com_world, com_world):
-    """6x6 spatial inertia at the world origin of a body with mass, world-axes inertia about its COM, COM position."""
+    """6x6 spatial inertia at the world origin of a body with mass, world-axes inertia about its
+    COM, COM position; batched over leading axes."""
     C = skew(com_world)
-    top = jnp.concatenate([inertia_com_world - mass * C @ C, mass * C], 1)
-    bot = jnp.concatenate([-mass * C, mass * jnp.eye(3, dtype=C.dtype)], 1)
-    return jnp.concatenate([top, bot], 0)
+    m = jnp.asarray(mass)[..., None, None]
+    eye = jnp.broadcast_to(jnp.eye(3, dtype=C.dtype), C.shape)
+    top = jnp.concatenate([inertia_com_world - m * mm(C, C), m * C], -1)
+    bot = jnp.concatenate([-m * C, m * eye], -1)
+    return jnp.concatenate([top, bot], -2)
 
 
 def point_wrench(force, point, torque=None):

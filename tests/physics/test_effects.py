@@ -8,7 +8,7 @@ import physdsl  # noqa: F401
 from physdsl.errors import ModelError
 from physdsl.physics import build_model, build_simulator
 from physdsl.physics.effects import EFFECTS
-from physdsl.physics.integrate import State, applied_forces
+from physdsl.physics.dynamics import generalized_forces
 from physdsl.physics.kinematics import forward_kinematics
 from physdsl.physics.params import evaluate_params
 from physdsl.scene import Joint
@@ -62,9 +62,9 @@ def tau_of(scene_, k, values, state):
     model = build_model(scene_)
     prm = evaluate_params(scene_, model, values)
     kin = forward_kinematics(model, prm, prm["q0"], prm["v0"])
-    tau = EFFECTS[scene_.effects[k].effect].force(model, model.sites[k], prm["effects"][k],
-                                                  _ctx(model, prm, kin, state))
-    return tau
+    load = EFFECTS[scene_.effects[k].effect].force(model, model.sites[k], prm["effects"][k],
+                                                   _ctx(model, prm, kin, state))
+    return generalized_forces(model, kin, load)
 
 
 def _ctx(model, prm, kin, state):

@@ -1,9 +1,9 @@
 """A primal-dual interior-point solver for the LCP  w = A z + q >= 0, z >= 0, z.w = 0.
 
 Fixed iteration budget (jit-friendly) with Mehrotra predictor-corrector centering, and an
-implicit gradient: ``lcp_solve`` is a ``jax.custom_vjp`` whose backward pass differentiates
-the complementarity conditions at the solution (Amos & Kolter's OptNet / de Avila
-Belbute-Peres et al.'s LCP engine) instead of unrolling the iterations.
+implicit derivative: ``lcp_solve`` is a ``jax.custom_jvp`` whose tangent rule differentiates
+the complementarity conditions at the solution (Amos & Kolter's OptNet / de Avila Belbute-Peres
+et al.'s LCP engine) instead of unrolling the iterations; reverse mode transposes that rule.
 """
 from __future__ import annotations
 
@@ -84,27 +84,21 @@ def _interior_point(A, q, settings: IPSettings):
     return z * q_scale / a_scale, w * q_scale
 
 
-@partial(jax.custom_vjp, nondiff_argnums=(2,))
+@partial(jax.custom_jvp, nondiff_argnums=(2,))
 def _lcp_implicit(A, q, settings):
     return _interior_point(A, q, settings)[0]
 
 
-def _lcp_fwd(A, q, settings):
-    z, w = _interior_point(A, q, settings)
-    return z, (A, z, w)
-
-
-def _lcp_bwd(settings, res, g):
+@_lcp_implicit.defjvp
+def _lcp_jvp(settings, primals, tangents):
     # At the solution F = [A z + q - w; z * w] = 0. Eliminating dw gives
-    # (Z A + W) dz = -Z (dA z + dq), so with (Z A + W)^T u = g and d = Z u:
-    # dL/dq = -d, dL/dA = -d z^T.
-    A, z, w = res
-    u = jnp.linalg.solve((z[:, None] * A + jnp.diag(w)).T, g)
-    d = z * u
-    return -jnp.outer(d, z), -d
-
-
-_lcp_implicit.defvjp(_lcp_fwd, _lcp_bwd)
+    # (Z A + W) dz = -Z (dA z + dq): one linear solve, linear in the tangents, so reverse mode
+    # is its transpose (dL/dq = -Z u, dL/dA = -Z u z^T with (Z A + W)^T u = g).
+    A, q = primals
+    dA, dq = tangents
+    z, w = _interior_point(A, q, settings)
+    dz = jnp.linalg.solve(z[:, None] * A + jnp.diag(w), -z * (dA @ z + dq))
+    return z, dz
 
 
 def lcp_solve(A, q, settings: IPSettings = IP_SETTINGS):

@@ -3,6 +3,6 @@ from . import (  # noqa: F401  (importing registers)
     buoyancy, constant_force, contact_params, control_force, damper, gravity, joint_damping,
     joint_friction, linear_drag, magnus, quadratic_drag, rolling_resistance, spring, wind,
 )
-from .base import EFFECTS, Ctx, Effect, register
+from .base import EFFECTS, Ctx, Effect, Load, register, zero_load
 
-__all__ = ["EFFECTS", "Ctx", "Effect", "register"]
+__all__ = ["EFFECTS", "Ctx", "Effect", "Load", "register", "zero_load"]

@@ -1,7 +1,9 @@
-"""Effect registry and helpers mapping world wrenches to generalized forces (J^T f).
+"""Effect registry and the Load an effect returns: world forces/torques per body plus joint forces.
 
-An effect is a pure function ``force(model, site, p, ctx) -> tau (nv,)`` registered under its
-stdlib name; ``p`` holds the use's evaluated parameters, ``ctx`` the kinematics and time.
+An effect is a pure function ``force(model, site, p, ctx) -> Load`` registered under its stdlib
+name; ``p`` holds the use's evaluated parameters, ``ctx`` the kinematics and time. Loads are
+body-level (force at the centre of mass, torque, both world axes) so a scene of free bodies
+needs no Jacobians: the integrator maps the summed Load to generalized forces once per stage.
 Effects with ``stage="contact"`` (friction, restitution) are read by the contact stage instead.
 """
 from __future__ import annotations
@@ -13,7 +15,7 @@ import jax.numpy as jnp
 
 from ...errors import ModelError
 from ..kinematics import Kin
-from ..spatial import point_wrench
+from ..rows import spread, take
 
 
 class Ctx(NamedTuple):
@@ -26,6 +28,23 @@ class Ctx(NamedTuple):
     gravity: jnp.ndarray  # (3,) total gravitational acceleration (for buoyancy)
     contact_force: jnp.ndarray  # (C,) normal forces of the previous step
     contact_normal: jnp.ndarray  # (C, 3)
+
+
+class Load(NamedTuple):
+    """Applied loads: world force at each body's COM, world torque per body, joint forces."""
+
+    force: jnp.ndarray  # (B, 3)
+    torque: jnp.ndarray  # (B, 3)
+    joint: jnp.ndarray  # (nv,)
+
+    def __add__(self, other):  # type: ignore[override]
+        return Load(self.force + other.force, self.torque + other.torque, self.joint + other.joint)
+
+
+def zero_load(model, dtype=float) -> Load:
+    """No load at all."""
+    B = model.nbody
+    return Load(jnp.zeros((B, 3), dtype), jnp.zeros((B, 3), dtype), jnp.zeros(model.nv, dtype))
 
 
 @dataclass(frozen=True)
@@ -65,41 +84,42 @@ def register(name: str, acts_on: tuple[str, ...], stage: str = "force", validate
     return deco
 
 
-def wrenches(ctx: Ctx, bodies, forces, points=None, torques=None):
-    """Generalized forces of world forces (n, 3) on ``bodies`` at world points (default: COMs)."""
-    idx = jnp.asarray(bodies)
-    kin = ctx.kin
-    pts = kin.com[idx] if points is None else points
-    n = jnp.cross(pts, forces)
+def wrenches(model, ctx: Ctx, bodies, forces, points=None, torques=None) -> Load:
+    """Load of world forces (n, 3) on ``bodies`` at world points (default: COMs), plus torques."""
+    dtype = ctx.kin.com.dtype
+    forces = jnp.broadcast_to(jnp.asarray(forces, dtype), (len(bodies), 3))
+    T = None
+    if points is not None:
+        T = jnp.cross(points - take(ctx.kin.com, bodies), forces)
     if torques is not None:
-        n = n + torques
-    f = jnp.concatenate([n, forces], -1)
-    return jnp.einsum("bkn,bk->n", kin.jac[idx], f)
+        T = torques if T is None else T + torques
+    F = spread(model.nbody, bodies, forces)
+    T = jnp.zeros_like(F) if T is None else spread(model.nbody, bodies, jnp.broadcast_to(T, forces.shape))
+    return Load(F, T, jnp.zeros(model.nv, dtype))
 
 
-def wrench(ctx: Ctx, body: int, force, point=None, torque=None):
-    """Generalized force of one world force on ``body`` at a world point (default: its COM)."""
-    pt = ctx.kin.com[body] if point is None else point
-    return ctx.kin.jac[body].T @ point_wrench(force, pt, torque)
+def wrench(model, ctx: Ctx, body: int, force, point=None, torque=None) -> Load:
+    """Load of one world force on ``body`` at a world point (default: its COM), plus a torque."""
+    pts = None if point is None else point[None]
+    return wrenches(model, ctx, (body,), force[None], pts, None if torque is None else torque[None])
 
 
 def com_velocity(ctx: Ctx, bodies):
     """World velocities (n, 3) of the bodies' centres of mass."""
-    idx = jnp.asarray(bodies)
-    vel = ctx.kin.vel[idx]
-    return vel[:, 3:] + jnp.cross(vel[:, :3], ctx.kin.com[idx])
+    return take(ctx.kin.vcom, bodies)
 
 
-def joint_forces(model, site, gen):
-    """Scatter a joint's generalized force (its dofs) into a full (nv,) vector."""
+def joint_forces(model, site, gen) -> Load:
+    """Load of a joint's generalized force (its dofs)."""
     tau = jnp.zeros(model.nv, dtype=gen.dtype)
-    if not site.dofs:
-        return tau
-    return tau.at[jnp.asarray(site.dofs)].set(gen)
+    if site.dofs:  # a joint's dofs are contiguous
+        tau = tau.at[site.dofs[0]:site.dofs[-1] + 1].set(gen)
+    z = jnp.zeros((model.nbody, 3), gen.dtype)
+    return Load(z, z, tau)
 
 
 def joint_velocity(ctx: Ctx, site):
-    return ctx.kin.v[jnp.asarray(site.dofs)] if site.dofs else jnp.zeros(0)
+    return take(ctx.kin.v, site.dofs) if site.dofs else jnp.zeros(0)
 
 
 def moving(model, bodies) -> tuple[int, ...]:

@@ -38,5 +38,4 @@ def control_force(model, site, p, ctx):
     if site.joint is not None:
         return joint_forces(model, site, jnp.reshape(u, (-1,)) * jnp.ones(len(site.dofs)))
     u = jnp.reshape(u, (-1,))
-    tau = wrench(ctx, site.bodies[0], u[:3], torque=u[3:6] if u.shape[0] == 6 else None)
-    return tau
+    return wrench(model, ctx, site.bodies[0], u[:3], torque=u[3:6] if u.shape[0] == 6 else None)

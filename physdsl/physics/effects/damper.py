@@ -14,5 +14,5 @@ def damper(model, site, p, ctx):
     va = point_velocity(ctx.kin, a, xa) if a is not None else jnp.zeros(3)
     rate = jnp.dot(u, point_velocity(ctx.kin, b, xb) - va)
     F = -p["coefficient"] * rate * u
-    tau = wrench(ctx, b, F, xb)
-    return tau if a is None else tau + wrench(ctx, a, -F, xa)
+    load = wrench(model, ctx, b, F, xb)
+    return load if a is None else load + wrench(model, ctx, a, -F, xa)

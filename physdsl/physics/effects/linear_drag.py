@@ -4,4 +4,4 @@ from .base import com_velocity, register, wrenches
 
 @register("linear_drag", ("body",))
 def linear_drag(model, site, p, ctx):
-    return wrenches(ctx, site.bodies, -p["coefficient"] * com_velocity(ctx, site.bodies))
+    return wrenches(model, ctx, site.bodies, -p["coefficient"] * com_velocity(ctx, site.bodies))

@@ -6,4 +6,4 @@ from .base import com_velocity, register, wrenches
 @register("quadratic_drag", ("body",))
 def quadratic_drag(model, site, p, ctx):
     v = com_velocity(ctx, site.bodies)
-    return wrenches(ctx, site.bodies, -p["coefficient"] * safe_norm(v, keepdims=True) * v)
+    return wrenches(model, ctx, site.bodies, -p["coefficient"] * safe_norm(v, keepdims=True) * v)

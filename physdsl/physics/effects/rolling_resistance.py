@@ -6,7 +6,8 @@ vanishes continuously when rolling stops.
 """
 import jax.numpy as jnp
 
-from .base import register, wrench
+from ..rows import take
+from .base import register, wrenches, zero_load
 
 EPS = 1e-3
 
@@ -15,13 +16,11 @@ EPS = 1e-3
 def rolling_resistance(model, site, p, ctx):
     a, b = site.bodies
     if not site.contacts:
-        return jnp.zeros(model.nv)
-    rows = jnp.asarray(site.contacts)
-    N = ctx.contact_force[rows]
-    n = ctx.contact_normal[rows]
-    w = ctx.kin.vel[a, :3] - ctx.kin.vel[b, :3]
+        return zero_load(model)
+    N = take(ctx.contact_force, site.contacts)
+    n = take(ctx.contact_normal, site.contacts)
+    w = ctx.kin.ang[a] - ctx.kin.ang[b]
     wh = w[None, :] - jnp.sum(n * w[None, :], -1, keepdims=True) * n  # (K, 3) in-plane part
     T = -p["coefficient"] * N[:, None] * wh / jnp.sqrt(jnp.sum(wh * wh, -1, keepdims=True) + EPS**2)
     T = jnp.sum(T, 0)
-    z = jnp.zeros(3)
-    return wrench(ctx, a, z, torque=T) + wrench(ctx, b, z, torque=-T)
+    return wrenches(model, ctx, (a, b), jnp.zeros((2, 3)), torques=jnp.stack([T, -T]))

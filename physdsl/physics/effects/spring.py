@@ -26,5 +26,5 @@ def spring(model, site, p, ctx):
     d = xb - xa
     # -k (l - l0) d/l written without dividing by l, so it is smooth at l = 0 when l0 = 0
     F = -p["stiffness"] * (d - p.get("rest_length", 0.0) * normalize(d))
-    tau = wrench(ctx, b, F, xb)
-    return tau if a is None else tau + wrench(ctx, a, -F, xa)
+    load = wrench(model, ctx, b, F, xb)
+    return load if a is None else load + wrench(model, ctx, a, -F, xa)

@@ -13,4 +13,4 @@ def wind(model, site, p, ctx):
     v = com_velocity(ctx, site.bodies)
     rel = p["velocity"][None, :] - v
     F = p["coefficient"] * (safe_norm(rel, keepdims=True) * rel + safe_norm(v, keepdims=True) * v)
-    return wrenches(ctx, site.bodies, F)
+    return wrenches(model, ctx, site.bodies, F)
