@@ -9,6 +9,8 @@ copies of a scene (e.g. through the CLI) reuse their executables.
 """
 from __future__ import annotations
 
+import atexit
+import shutil
 import tempfile
 from pathlib import Path
 
@@ -19,6 +21,7 @@ import pytest
 import physdsl  # noqa: F401 - float64
 
 _CACHE_DIR = tempfile.mkdtemp(prefix="physdsl-infer-tests-xla-")
+atexit.register(shutil.rmtree, _CACHE_DIR, ignore_errors=True)
 jax.config.update("jax_compilation_cache_dir", _CACHE_DIR)
 jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
 

@@ -82,14 +82,14 @@ def test_resume_with_nothing_to_resume(tmp_path, cli):
 
 
 def test_infer_end_to_end(projectile_scene, tmp_path, cli):
-    """The CLI on the tiny projectile (MAP + Laplace): every output, readable and consistent."""
+    """The CLI on the tiny projectile (NUTS): every output, readable and consistent."""
     import arviz as az
 
     folder = tmp_path / "case"
     shutil.copytree(projectile_scene.parent, folder)
     scene = folder / "scene.phys"
     out = tmp_path / "run"
-    code, stdout, err = cli("infer", scene, "-o", out, "--backend", "map", "--chains", "2",
+    code, stdout, err = cli("infer", scene, "-o", out, "--backend", "nuts", "--chains", "2",
                             "--warmup", "100", "--samples", "200", "--seed", "4")
     assert code == 0, err
     assert "Traceback" not in err
@@ -123,10 +123,13 @@ def test_infer_end_to_end(projectile_scene, tmp_path, cli):
     assert run["scene_sha256"] == hashlib.sha256(scene.read_text().encode()).hexdigest()
     data_hash = hashlib.sha256((folder / "data.csv").read_bytes()).hexdigest()
     assert list(run["data_sha256"].values()) == [data_hash]
-    assert run["backend"] == "map" and run["seed"] == 4
+    assert run["backend"] == "nuts" and run["seed"] == 4
     assert run["settings"]["chains"] == 2 and run["settings"]["samples"] == 200
     assert {"physdsl", "jax", "numpyro", "blackjax", "arviz", "python"} <= set(run["versions"])
     assert not (out / "checkpoint.pkl").exists()
+    stats = idata.sample_stats
+    assert {"acceptance_rate", "diverging", "n_steps"} <= set(stats.data_vars)
+    assert stats["acceptance_rate"].shape == (2, 200)
 
     # a second run into the same folder is refused, with --force it is redone identically
     code, _, err = cli("infer", scene, "-o", out, "--backend", "map")

@@ -1,8 +1,8 @@
 """A rollout that turns NaN for some parameter values is a rejected proposal, not a crash.
 
-The drag coefficient is ``sqrt(b2)`` with a normal prior on ``b2``: about a third of the prior
-lies where the square root (and so the whole rollout) is NaN, and the truth sits close to
-that edge, so samplers keep proposing into it.
+The drag coefficient is ``sqrt(b2)`` with a normal prior on ``b2``: a quarter of the prior
+lies where the square root (and so the whole rollout) is NaN, so starts must skip such draws
+and samplers meet the edge while they find the posterior (a few posterior sds from it).
 """
 from __future__ import annotations
 
@@ -16,8 +16,8 @@ from .conftest import PROJECTILE, PROJECTILE_TIMES, interval_contains, simulated
 TEXT = PROJECTILE.replace("NOISE", "1 cm").replace(
     "effect linear_drag on ball { coefficient ~ half_normal(0.5 kg/s) }",
     "effect linear_drag on ball { coefficient: sqrt(b2) }").replace(
-    "  body ball {", "  param b2 ~ normal(0.01, 0.02)\n  body ball {")
-TRUTH = {"ball.velocity": np.array([3.2, 0.4, 4.3]), "b2": np.array(0.0025)}
+    "  body ball {", "  param b2 ~ normal(0.02, 0.03)\n  body ball {")
+TRUTH = {"ball.velocity": np.array([3.2, 0.4, 4.3]), "b2": np.array(0.04)}
 
 
 @pytest.fixture(scope="module")
@@ -62,13 +62,35 @@ def test_initial_points_avoid_the_nan_region(model):
     assert len(b2) == 8 and min(b2) >= 0.0
     # the prior does reach the NaN region: the start had to skip draws
     prior = prior_draws_unconstrained(problem, jax.random.PRNGKey(1), 64)
-    assert (np.asarray([float(problem.to_constrained(x)["b2"]) for x in prior]) < 0).mean() > 0.15
+    assert (np.asarray([float(problem.to_constrained(x)["b2"]) for x in prior]) < 0).mean() > 0.1
 
 
-def test_nuts_rejects_nan_proposals_and_recovers(model):
-    idata = model.infer(backend="nuts", chains=2, warmup=150, samples=150, seed=3, progress=False)
+@pytest.mark.parametrize("backend", ["rmh", pytest.param("nuts", marks=pytest.mark.slow)])
+def test_sampler_rejects_nan_proposals_and_recovers(model, backend):
+    budget = {"rmh": dict(warmup=2000, samples=2000), "nuts": dict(warmup=200, samples=200)}
+    idata = model.infer(backend=backend, chains=2, seed=3, progress=False, **budget[backend])
     b2 = idata.posterior["b2"].values
     assert np.all(np.isfinite(b2)) and b2.min() >= 0.0
     for name, value in TRUTH.items():
         assert np.all(interval_contains(idata.posterior[name].values, value)), name
     assert np.all(np.isfinite(idata.log_likelihood["obs:ball.position"].values))
+
+
+def test_mode_search_steps_back_from_the_nan_edge(model):
+    """L-BFGS never ends in the NaN region and improves every start; starts that do not head
+    into the edge reach the mode. (A start whose path runs into b2 = 0, where the gradient of
+    sqrt(b2) is infinite, can stall there: scipy's L-BFGS-B stopped at its first point.)"""
+    from physdsl.infer.backends.map import find_modes
+    from physdsl.infer.base import value_and_grad_fn
+    from physdsl.infer.problem import make_problem
+
+    problem, positions = make_problem(model, jax.random.PRNGKey(5), 4)
+    vg = value_and_grad_fn(problem)
+    start = np.array([float(vg(x)[0]) for x in positions])
+    modes = find_modes(problem, positions)
+    best = np.array([float(vg(x)[0]) for x in modes])
+    assert np.all(np.isfinite(best)) and np.all(best > start)
+    at_mode = best > best.max() - 1e-3
+    assert at_mode.sum() >= 2
+    b2 = np.array([float(problem.to_constrained(x)["b2"]) for x in modes])
+    assert np.all(b2 >= 0) and np.all(np.abs(b2[at_mode] - TRUTH["b2"]) < 0.02)

@@ -11,14 +11,19 @@ import pytest
 
 from .conftest import PROJECTILE_TRUTH, interval_contains, simulated_scene
 
-# backend -> (settings, r-hat bound or None where r-hat means nothing for the draws)
+# backend -> (settings, r-hat bound or None where r-hat means nothing for the draws).
+# This posterior is strongly correlated (launch velocity against drag); with a diagonal mass
+# matrix both NUTS implementations get a bulk ESS near 150 from 2 chains of 300 draws, where
+# r-hat itself scatters by about 0.01, so the fast suite asks r-hat < 1.03 (1.05 for
+# fixed-length HMC and the random walk); the slow test (4 chains, 3x the budget) asks 1.01.
 BACKENDS = {
-    "nuts": (dict(chains=2, warmup=150, samples=150), 1.01),
-    "hmc": (dict(chains=2, warmup=150, samples=150, integration_steps=16), 1.01),
-    "numpyro-nuts": (dict(chains=2, warmup=150, samples=150), 1.01),
-    "rmh": (dict(chains=2, warmup=600, samples=600), 1.05),
+    "nuts": (dict(chains=2, warmup=200, samples=300), 1.03),
+    "hmc": (dict(chains=2, warmup=150, samples=150, integration_steps=16), 1.05),
+    "numpyro-nuts": (dict(chains=2, warmup=200, samples=300), 1.03),
+    "rmh": (dict(chains=2, warmup=2000, samples=2000), 1.05),
     "map": (dict(chains=2, warmup=100, samples=300), None),
 }
+SLOW_RHAT = {"nuts": 1.01, "hmc": 1.01, "numpyro-nuts": 1.01, "rmh": 1.02, "map": None}
 
 
 def check_recovery(model, idata, truth: dict, rhat_bound, level: float = 0.9):
@@ -118,8 +123,8 @@ def test_pendulum_recovery(tmp_path_factory, backend):
 @pytest.mark.slow
 @pytest.mark.parametrize("backend", list(BACKENDS))
 def test_projectile_recovery_large_budget(projectile_model, backend):
-    settings, rhat_bound = BACKENDS[backend]
+    settings = BACKENDS[backend][0]
     settings = {**settings, "chains": 4, "warmup": settings["warmup"] * 3,
                 "samples": settings["samples"] * 3}
     idata = projectile_model.infer(backend=backend, seed=7, progress=False, **settings)
-    check_recovery(projectile_model, idata, PROJECTILE_TRUTH, rhat_bound)
+    check_recovery(projectile_model, idata, PROJECTILE_TRUTH, SLOW_RHAT[backend])

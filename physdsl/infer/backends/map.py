@@ -1,6 +1,7 @@
 """MAP by L-BFGS in unconstrained space, with a Laplace approximation for uncertainty.
 
-The optimiser (scipy's L-BFGS-B) drives one jitted value-and-gradient function of the log
+The optimiser (L-BFGS with a backtracking line search that treats a non-finite log density
+as a too-long step) drives one jitted value-and-gradient function of the log
 density, so the physics is compiled once however many iterations, line searches and chains
 run. The Hessian at the mode comes from central differences of that same gradient (no second
 compile). 'Draws' are independent samples of the Gaussian centred at each chain's mode with
@@ -11,25 +12,73 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 import numpy as np
-from scipy.optimize import minimize
 
 from ..base import Backend, register_backend, value_and_grad_fn  # noqa: F401 - re-exported
 
 
-def find_mode(problem, x0, steps: int = 300) -> np.ndarray:
-    """Maximise the log density from ``x0`` with L-BFGS; returns the best point found."""
+def find_mode(problem, x0, steps: int = 300, memory: int = 10) -> np.ndarray:
+    """Maximise the log density from ``x0`` by L-BFGS; returns the best point found.
+
+    The line search backtracks (halving) until the step lands where the log density is
+    finite and rises enough (Armijo): a rollout that turns NaN past some edge of the
+    parameter space (``sqrt`` of a negative drag) only shortens the step. (scipy's L-BFGS-B
+    stops at once there, reporting convergence at its starting point.) The first step has
+    unit length; later steps use the curvature pairs, so no scale needs to be known.
+    """
     vg = value_and_grad_fn(problem)
 
     def neg(x):
         v, g = vg(jnp.asarray(x))
-        v, g = float(v), np.asarray(g, dtype=float)
-        if not np.isfinite(v):
-            return 1e300, np.zeros_like(g)
-        return -v, -g
+        v = float(v)
+        return (-v, -np.asarray(g, dtype=float)) if np.isfinite(v) else (np.inf, None)
 
-    x0 = np.asarray(x0, dtype=float)
-    res = minimize(neg, x0, jac=True, method="L-BFGS-B", options={"maxiter": steps})
-    return res.x if np.isfinite(res.fun) and res.fun <= neg(x0)[0] else x0
+    x = np.asarray(x0, dtype=float)
+    fx, gx = neg(x)
+    if not np.isfinite(fx):
+        return x
+    pairs: list[tuple[np.ndarray, np.ndarray]] = []
+    for _ in range(steps):
+        d = -_two_loop(gx, pairs)
+        slope = float(gx @ d)
+        if slope >= 0:  # not a descent direction: forget the curvature, go downhill
+            pairs.clear()
+            d = -gx / max(np.linalg.norm(gx), 1e-300)
+            slope = float(gx @ d)
+        t = 1.0
+        for _ in range(60):
+            xn = x + t * d
+            fn, gn = neg(xn)
+            if np.isfinite(fn) and fn <= fx + 1e-4 * t * slope:
+                break
+            t *= 0.5
+        else:
+            break  # no step improves: at a mode (to rounding) or against an edge
+        s, y = xn - x, gn - gx
+        if s @ y > 1e-12 * np.linalg.norm(s) * np.linalg.norm(y):
+            pairs = (pairs + [(s, y)])[-memory:]
+        done = fx - fn <= 1e-13 * max(1.0, abs(fx)) or np.max(np.abs(gn)) < 1e-9
+        x, fx, gx = xn, fn, gn
+        if done:
+            break
+    return x
+
+
+def _two_loop(g, pairs):
+    """L-BFGS inverse-Hessian times ``g`` from curvature pairs (unit-length step without any)."""
+    if not pairs:
+        return g / max(np.linalg.norm(g), 1e-300)
+    q = g.copy()
+    alphas = []
+    for s, y in reversed(pairs):
+        rho = 1.0 / (y @ s)
+        a = rho * (s @ q)
+        alphas.append((rho, a, s, y))
+        q = q - a * y
+    s, y = pairs[-1]
+    q = q * (s @ y) / (y @ y)
+    for rho, a, s, y in reversed(alphas):
+        q = q + s * (a - rho * (y @ q))
+    return q
 
 
 def find_modes(problem, positions, steps: int = 300) -> jnp.ndarray:

@@ -1,9 +1,9 @@
 """Random-walk Metropolis-Hastings (blackjax) with an adapted Gaussian proposal.
 
-Warmup adapts a diagonal proposal: its shape from the running variance of the chain and its
-overall scale by Robbins-Monro towards the optimal acceptance rate 0.234 (Roberts & Rosenthal).
-Needs no gradient (only the log density's value is compiled), so it also runs on rollouts that are
-not differentiable. As for HMC, one transition of one chain (proposal scale as an argument)
+Warmup adapts a Gaussian proposal: its shape from the running covariance of the chain
+(adaptive Metropolis, so correlated posteriors mix) and its overall scale by Robbins-Monro
+towards the optimal acceptance rate 0.234 (Roberts & Rosenthal). Needs no gradient (only the
+log density's value is compiled), so it also runs on rollouts that are not differentiable. As for HMC, one transition of one chain (proposal scale as an argument)
 is jitted once per Problem and driven from Python in warmup and sampling alike.
 """
 from __future__ import annotations
@@ -20,18 +20,23 @@ from .hmc import chain_keys, stack, unstack
 TARGET_ACCEPT = 0.234
 
 
-def _adapt(i, log_scale, mean, var, position, acc):
-    """One Robbins-Monro update of a chain's log scale and running moments; and its new sigma."""
+def _adapt(i, log_scale, mean, cov, position, acc):
+    """One update of a chain's proposal: Robbins-Monro on the log scale, running mean and
+    covariance of the chain (adaptive Metropolis, Haario et al.); returns the new Cholesky
+    factor of the proposal too."""
     acc = jnp.where(jnp.isfinite(acc), jnp.minimum(acc, 1.0), 0.0)
     log_scale = log_scale + (acc - TARGET_ACCEPT) / jnp.sqrt(i + 1.0)
     w = 1.0 / (i + 10.0)
     delta = position - mean
-    var = jnp.clip((1 - w) * var + w * delta**2, 1e-12, 1e6)
-    return log_scale, mean + w * delta, var, _sigma(log_scale, var)
+    cov = (1 - w) * cov + w * jnp.outer(delta, delta)
+    return log_scale, mean + w * delta, cov, _sigma(log_scale, cov)
 
 
-def _sigma(log_scale, var):
-    return jnp.exp(log_scale) * jnp.sqrt(var) * 2.38 / jnp.sqrt(var.shape[-1])
+def _sigma(log_scale, cov):
+    """Proposal 'standard deviation' matrix: scale x 2.38/sqrt(d) x chol(cov)."""
+    d = cov.shape[-1]
+    jitter = 1e-10 * (jnp.trace(cov) / d + 1e-12) * jnp.eye(d)
+    return jnp.exp(log_scale) * 2.38 / jnp.sqrt(d) * jnp.linalg.cholesky(cov + jitter)
 
 
 @register_backend
@@ -55,7 +60,7 @@ class RMH(Backend):
         adapt = cached(problem, ("rmh", "adapt"), lambda: jax.jit(_adapt))
         positions = jnp.asarray(positions)
         states = [RWState(x, value(x)) for x in positions]
-        moments = [(jnp.zeros(()), x, jnp.full(dim, 0.01)) for x in positions]
+        moments = [(jnp.zeros(()), x, 0.01 * jnp.eye(dim)) for x in positions]
         sigmas = [_sigma(m[0], m[2]) for m in moments]
         n = max(settings.warmup, 1)
         for i, k in enumerate(chain_keys(key, n, chains)):
