@@ -109,13 +109,13 @@ PENDULUM = """\
 scene swing {
   world {
     timestep: 10 ms
-    duration: 3 s
+    duration: 2 s
     integrator: rk4
   }
   body bob {
     shape: sphere(radius: 3 cm)
     mass: 200 g
-    position: (0, 0, 0.75) m
+    position: (0, 0, 0.5) m
   }
   joint hinge: hinge(world -> bob) {
     axis: (0, -1, 0)
@@ -243,7 +243,7 @@ def _throw_times():
 
 
 def _swing_times():
-    return tuple(np.linspace(0.0, 3.0, 151))
+    return tuple(np.linspace(0.0, 2.0, 101))
 
 
 BALL = (Data("data.csv", "ball", "position", 0.005),)
@@ -254,7 +254,7 @@ CASES = {
     "quadratic_drag": Case(PROJECTILE, "quadratic_drag", ("ball",), 4e-4, THROW, _throw_times(), BALL),
     "linear_drag": Case(PROJECTILE, "linear_drag", ("ball",), 4e-3, THROW, _throw_times(), BALL),
     "wind": Case(PROJECTILE, "wind", ("ball",), (0.0, 1.0, 0.0), THROW, _throw_times(), BALL),
-    "joint_damping": Case(PENDULUM, "joint_damping", ("hinge",), 4e-3, {"hinge.initial": 0.7},
+    "joint_damping": Case(PENDULUM, "joint_damping", ("hinge",), 3e-3, {"hinge.initial": 0.7},
                           _swing_times(), HINGE, seed=2),
     "joint_friction": Case(PENDULUM, "joint_friction", ("hinge",), 3e-3, {"hinge.initial": 0.7},
                            _swing_times(), HINGE, seed=3),
