@@ -11,6 +11,8 @@ candidate, then refits of the best ``--confirm`` physical candidates) and report
 - ``winner.CASE``: the confirmed effect (or ``none``), ``verdict.CASE``,
 - ``rms_before.CASE`` / ``rms_after.CASE``: residual RMS in noise units without the effect and
   after refitting with the winner,
+- ``delta_elpd.CASE`` / ``delta_lfo.CASE``: the winner's and the true effect's evidence
+  (when the true effect was among the refitted candidates),
 - ``fitted.CASE``: the winner's fitted strength (median and 90% interval) and the truth,
 - ``seconds.CASE``: wall time (fit, score tests, confirmation).
 
@@ -71,6 +73,10 @@ def run_case(name: str, confirm: int, seed: int) -> dict:
         "rms_before": diag.rms_sigma,
         "rms_after": w.rms_after if w else (row.rms_after if row else None),
         "true_confirmed": bool(row.confirmed) if row is not None else None,
+        "true_delta_elpd": row.delta_elpd if row is not None else None,
+        "true_delta_lfo": row.delta_lfo if row is not None else None,
+        "winner_delta_elpd": w.delta_elpd if w else None,
+        "winner_delta_lfo": w.delta_lfo if w else None,
         "seconds_fit": t1 - t0, "seconds_score": diag.seconds.get("score_tests"),
         "seconds_confirm": diag.seconds.get("confirmation"), "seconds": t2 - t0,
     }
@@ -134,6 +140,10 @@ def _print_lines(r: dict) -> None:
     print(f"rank.{n}: {_fmt(r['rank'])} of {r['n_candidates']}")
     print(f"winner.{n}: {r['winner'] or 'none'} (true {r['true']})")
     print(f"verdict.{n}: {r['verdict']}")
+    print(f"delta_elpd.{n}: winner {_fmt(r.get('winner_delta_elpd'), '+.1f')}, true effect "
+          f"{_fmt(r.get('true_delta_elpd'), '+.1f')} (confirmed: {r.get('true_confirmed')})")
+    print(f"delta_lfo.{n}: winner {_fmt(r.get('winner_delta_lfo'), '+.1f')}, true effect "
+          f"{_fmt(r.get('true_delta_lfo'), '+.1f')}")
     print(f"rms_before.{n}: {r['rms_before']:.3f}")
     print(f"rms_after.{n}: {_fmt(r['rms_after'], '.3f')}")
     if r.get("fitted"):
