@@ -1,78 +1,53 @@
-"""Rigid-body dynamics in world coordinates (Featherstone): CRBA mass matrix, RNEA bias forces,
-ABA forward dynamics. All loops run over the static tree at trace time.
+"""Rigid-body dynamics in world coordinates: the joint-space mass matrix and bias forces from the
+body Jacobians (vectorised over bodies), forward dynamics by one Cholesky solve for small trees
+and by Featherstone's articulated-body algorithm (loops over the static tree at trace time) for
+large ones.
 """
 from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+from jax.scipy.linalg import cho_factor, cho_solve
 
 from .kinematics import Kin
 from .model import Model
-from .spatial import cross_force
+from .spatial import cross_force, mm, mv
 
 
 def generalized_forces(model: Model, kin: Kin, load):
     """tau (nv,) of a Load: joint forces plus J^T of each body's spatial force at the origin."""
     n_origin = load.torque + jnp.cross(kin.com, load.force)
     f = jnp.concatenate([n_origin, load.force], -1)
-    return load.joint + jnp.einsum("bkn,bk->n", kin.jac, f)
+    return load.joint + jnp.sum(kin.jac * f[..., None], axis=(0, 1))
 
 
 def mass_matrix(model: Model, kin: Kin):
-    """Joint-space mass matrix M (nv, nv) by the composite-rigid-body algorithm."""
-    nv = model.nv
-    Ic = [kin.inertia[i] for i in range(model.nbody)]
-    for i in reversed(model.order):
-        p = model.joints[i].parent
-        if p >= 0:
-            Ic[p] = Ic[p] + Ic[i]
-    M = jnp.zeros((nv, nv), dtype=kin.inertia.dtype)
-    for i in model.order:
-        tj = model.joints[i]
-        if not tj.nv:
-            continue
-        F = Ic[i] @ kin.S[i]
-        si = slice(tj.vadr, tj.vadr + tj.nv)
-        M = M.at[si, si].set(kin.S[i].T @ F)
-        j = tj.parent
-        while j >= 0:
-            tp = model.joints[j]
-            if tp.nv:
-                sj = slice(tp.vadr, tp.vadr + tp.nv)
-                blk = kin.S[j].T @ F
-                M = M.at[sj, si].set(blk).at[si, sj].set(blk.T)
-            j = tp.parent
-    return M
-
-
-def inverse_dynamics(model: Model, kin: Kin, qdd):
-    """Generalized forces tau = M qdd + bias (recursive Newton-Euler, no external forces)."""
-    B = model.nbody
-    a: list = [None] * B
-    f: list = [None] * B
-    zero6 = jnp.zeros(6, dtype=kin.vel.dtype)
-    for i in model.order:
-        tj = model.joints[i]
-        ap = a[tj.parent] if tj.parent >= 0 else zero6
-        ai = ap + kin.bias_acc[i]
-        if tj.nv:
-            ai = ai + kin.S[i] @ qdd[tj.vadr:tj.vadr + tj.nv]
-        a[i] = ai
-        I, vi = kin.inertia[i], kin.vel[i]
-        f[i] = I @ ai + cross_force(vi, I @ vi)
-    tau = jnp.zeros(model.nv, dtype=kin.vel.dtype)
-    for i in reversed(model.order):
-        tj = model.joints[i]
-        if tj.nv:
-            tau = tau.at[tj.vadr:tj.vadr + tj.nv].set(kin.S[i].T @ f[i])
-        if tj.parent >= 0:
-            f[tj.parent] = f[tj.parent] + f[i]
-    return tau
+    """Joint-space mass matrix M = sum_b J_b^T I_b J_b (nv, nv), vectorised over bodies."""
+    IJ = mm(kin.inertia, kin.jac)  # (B, 6, nv)
+    return jnp.sum(kin.jac[..., :, None] * IJ[..., None, :], axis=(0, 1))
 
 
 def bias_forces(model: Model, kin: Kin):
-    """Coriolis and centrifugal generalized forces C(q, v) v (RNEA with zero acceleration)."""
-    return inverse_dynamics(model, kin, jnp.zeros(model.nv, dtype=kin.vel.dtype))
+    """Coriolis and centrifugal generalized forces C(q, v) v: J^T of each body's inertial force
+    at zero joint acceleration, I a0 + v x* I v (Newton-Euler in Jacobian form)."""
+    I, vel = kin.inertia, kin.vel
+    f = mv(I, kin.acc0) + cross_force(vel, mv(I, vel))
+    return jnp.sum(kin.jac * f[..., None], axis=(0, 1))
+
+
+def inverse_dynamics(model: Model, kin: Kin, qdd):
+    """Generalized forces tau = M qdd + bias (no external forces)."""
+    return mv(mass_matrix(model, kin), qdd) + bias_forces(model, kin)
+
+
+def joint_space_accel(model: Model, kin: Kin, tau):
+    """qdd = M^-1 (tau - bias) by one Cholesky solve: vectorised over bodies, so it compiles
+    and runs faster than the articulated-body recursion for the small trees of scenes."""
+    M = mass_matrix(model, kin)
+    rhs = tau - bias_forces(model, kin)
+    if model.nv == 1:
+        return rhs / M[0]
+    return cho_solve(cho_factor(M), rhs)
 
 
 def small_inv(D):

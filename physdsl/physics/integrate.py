@@ -1,7 +1,7 @@
 """Time stepping: one pure ``step(model, prm, state, t, h)`` by semi-implicit Euler or RK4.
 
 Effects give one summed Load per evaluation. Scenes of free bodies use the Newton-Euler fast
-path (``free.py``); others the articulated-body algorithm over the tree. The LCP contact model
+path (``free.py``); others tree kinematics and joint-space dynamics (``dynamics.py``). The LCP contact model
 needs the mass matrix (CRBA, or block-diagonal for free bodies) and runs only when some
 candidate is within the contact margin (``lax.cond``; under ``vmap`` both branches run).
 RK4 is only used without contacts (contacts are non-smooth, so scenes with contact candidates
@@ -15,11 +15,15 @@ import jax
 import jax.numpy as jnp
 
 from . import contact_stage as cs
-from .dynamics import forward_dynamics, generalized_forces, mass_matrix
+from .dynamics import forward_dynamics, generalized_forces, joint_space_accel, mass_matrix
 from .effects import EFFECTS, Ctx, zero_load
 from .free import free_accel, free_kinematics, free_mass_matrix
 from .kinematics import forward_kinematics, integrate_q
 from .model import Model
+
+
+# trees with at most this many dofs: one Cholesky solve; larger: the articulated-body algorithm
+JOINT_SPACE_MAX = 24
 
 
 class State(NamedTuple):
@@ -63,7 +67,10 @@ def accel(model: Model, prm: dict, kin, load, tau=None):
         return free_accel(model, prm, kin, load.force, load.torque,
                           load.joint if tau is None else load.joint + tau)
     gen = generalized_forces(model, kin, load)
-    return forward_dynamics(model, kin, gen if tau is None else gen + tau)
+    gen = gen if tau is None else gen + tau
+    if model.nv <= JOINT_SPACE_MAX:
+        return joint_space_accel(model, kin, gen)
+    return forward_dynamics(model, kin, gen)
 
 
 def joint_mass_matrix(model: Model, prm: dict, kin):

@@ -12,7 +12,7 @@ import jax
 import jax.numpy as jnp
 
 from .model import Model
-from .spatial import (cross_motion, normalize, quat_axis_angle, quat_conj, quat_mul,
+from .spatial import (cross_motion, mm, mv, normalize, quat_axis_angle, quat_conj, quat_mul,
                       quat_to_mat, skew, spatial_inertia)
 
 
@@ -34,6 +34,26 @@ class Kin(NamedTuple):
     bias_acc: jnp.ndarray | None = None  # (B, 6) c_i = dS_i/dt qdot_i
     inertia: jnp.ndarray | None = None  # (B, 6, 6) spatial inertias at the origin
     S: tuple | None = None  # per body (6, nv_i) motion subspace
+    acc0: jnp.ndarray | None = None  # (B, 6) spatial accelerations at zero joint acceleration
+
+
+BARRIER_DEPTH = 3
+
+
+def _barrier(model: Model, x):
+    """An optimization barrier in deep trees only: it stops XLA from fusing (and recomputing)
+    whole ancestor chains per body, but in shallow trees it only splits kernels."""
+    if max(_depths(model)) < BARRIER_DEPTH:
+        return x
+    return jax.lax.optimization_barrier(x)
+
+
+def _depths(model: Model):
+    d = [0] * model.nbody
+    for i in model.order:
+        p = model.joints[i].parent
+        d[i] = d[p] + 1 if p >= 0 else 1
+    return d or [0]
 
 
 def forward_kinematics(model: Model, prm: dict, q, v) -> Kin:
@@ -47,6 +67,7 @@ def forward_kinematics(model: Model, prm: dict, q, v) -> Kin:
     vel: list = [None] * B
     jac: list = [None] * B
     cacc: list = [None] * B
+    acc0: list = [None] * B
     S: list = [None] * B
     zero6 = jnp.zeros(6, dtype=dtype)
     for i in model.order:
@@ -66,12 +87,12 @@ def forward_kinematics(model: Model, prm: dict, q, v) -> Kin:
             a, p = prm["axis"][i], prm["anchor"][i]
             qJ = quat_axis_angle(a, qi[0])
             qD = quat_mul(qD_p, qJ)
-            tD = R_p @ (p - quat_to_mat(qJ) @ p) + tD_p
-            a_w, p_w = R_p @ a, R_p @ p + tD_p
+            tD = mv(R_p, p - mv(quat_to_mat(qJ), p)) + tD_p
+            a_w, p_w = mv(R_p, a), mv(R_p, p) + tD_p
             Si = jnp.concatenate([a_w, jnp.cross(p_w, a_w)])[:, None]
         elif tj.kind == "slider":
             a = prm["axis"][i]
-            qD, a_w = qD_p, R_p @ a
+            qD, a_w = qD_p, mv(R_p, a)
             tD = a_w * qi[0] + tD_p
             Si = jnp.concatenate([jnp.zeros(3, dtype=dtype), a_w])[:, None]
         elif tj.kind == "ball":
@@ -79,43 +100,43 @@ def forward_kinematics(model: Model, prm: dict, q, v) -> Kin:
             qQ = normalize(qi)
             RQ = quat_to_mat(qQ)
             qD = quat_mul(qD_p, qQ)
-            tD = R_p @ (p - RQ @ p) + tD_p
-            E = R_p @ RQ
-            Si = jnp.concatenate([E, skew(R_p @ p + tD_p) @ E], 0)
+            tD = mv(R_p, p - mv(RQ, p)) + tD_p
+            E = mm(R_p, RQ)
+            Si = jnp.concatenate([E, mm(skew(mv(R_p, p) + tD_p), E)], 0)
         elif tj.kind == "free":
             x, qb = qi[:3], normalize(qi[3:])
             R = quat_to_mat(qb)
             qD = quat_mul(qb, quat_conj(ref_q))
-            tD = x - quat_to_mat(qD) @ ref_p
+            tD = x - mv(quat_to_mat(qD), ref_p)
             St = jnp.concatenate([jnp.zeros((3, 3), dtype=dtype), jnp.eye(3, dtype=dtype)], 0)
-            Sr = jnp.concatenate([R, skew(x) @ R], 0)
+            Sr = jnp.concatenate([R, mm(skew(x), R)], 0)
             Si = jnp.concatenate([St, Sr], 1)
         else:  # pragma: no cover - model.py rejects other kinds
             raise ValueError(tj.kind)
-        # the barrier stops XLA from fusing (and recomputing) whole ancestor chains per body
-        qD, tD = jax.lax.optimization_barrier((qD, tD))
+        qD, tD = _barrier(model, (qD, tD))
         D[i] = (qD, tD)
         quat[i] = normalize(quat_mul(qD, ref_q))
-        pos[i] = quat_to_mat(qD) @ ref_p + tD
-        vel[i] = v_p + (Si @ vi if tj.nv else zero6)
+        pos[i] = mv(quat_to_mat(qD), ref_p) + tD
+        vel[i] = v_p + (mv(Si, vi) if tj.nv else zero6)
         if tj.kind == "free":
-            c = cross_motion(vel[i], Si[:, 3:] @ vi[3:]) + cross_motion(v_p, Si[:, :3] @ vi[:3])
+            c = cross_motion(vel[i], mv(Si[:, 3:], vi[3:])) + cross_motion(v_p, mv(Si[:, :3], vi[:3]))
         elif tj.nv:
-            c = cross_motion(v_p, Si @ vi)
+            c = cross_motion(v_p, mv(Si, vi))
         cacc[i] = c
+        acc0[i] = (acc0[tj.parent] if tj.parent >= 0 else zero6) + c
         S[i] = Si
-        vel[i], Si = jax.lax.optimization_barrier((vel[i], Si))
+        vel[i], Si = _barrier(model, (vel[i], Si))
         jac[i] = J_p.at[:, tj.vadr:tj.vadr + tj.nv].set(Si) if tj.nv else J_p
     pos_a, quat_a = jnp.stack(pos), jnp.stack(quat)
     rot = quat_to_mat(quat_a)
-    com = pos_a + jnp.einsum("bij,bj->bi", rot, prm["com"])
-    I_world = rot @ prm["inertia"] @ jnp.swapaxes(rot, -1, -2)
-    inertia6 = jnp.stack([spatial_inertia(prm["mass"][i], I_world[i], com[i]) for i in range(B)])
+    com = pos_a + mv(rot, prm["com"])
+    I_world = mm(mm(rot, prm["inertia"]), jnp.swapaxes(rot, -1, -2))
+    inertia6 = spatial_inertia(prm["mass"], I_world, com)
     vel_a = jnp.stack(vel)
     ang = vel_a[:, :3]
     vcom = vel_a[:, 3:] + jnp.cross(ang, com)
     return Kin(pos_a, quat_a, rot, com, ang, vcom, q, v, vel_a, jnp.stack(jac), jnp.stack(cacc),
-               inertia6, tuple(S))
+               inertia6, tuple(S), jnp.stack(acc0))
 
 
 def point_velocity(kin: Kin, body: int, point):

@@ -23,19 +23,27 @@ def normalize(x, axis=-1):
 
 
 def mv(R, x):
-    """R @ x over leading batch axes, as a fused elementwise product and sum (XLA on CPU runs
-    each tiny dot as its own kernel; elementwise products fuse with their neighbours)."""
-    return jnp.sum(R * x[..., None, :], -1)
+    """R @ x over leading batch axes, unrolled into elementwise products and sums: XLA on CPU
+    runs each tiny dot, and each reduction, as a kernel of its own; elementwise ops fuse."""
+    return _sum(R[..., :, k] * x[..., None, k] for k in range(x.shape[-1]))
 
 
 def mtv(R, x):
-    """R^T @ x over leading batch axes (elementwise, see ``mv``)."""
-    return jnp.sum(R * x[..., :, None], -2)
+    """R^T @ x over leading batch axes (unrolled, see ``mv``)."""
+    return _sum(R[..., k, :] * x[..., k, None] for k in range(x.shape[-1]))
 
 
 def mm(A, B):
-    """A @ B over leading batch axes (elementwise, see ``mv``)."""
-    return jnp.sum(A[..., :, :, None] * B[..., None, :, :], -2)
+    """A @ B over leading batch axes (unrolled, see ``mv``)."""
+    return _sum(A[..., :, k, None] * B[..., None, k, :] for k in range(A.shape[-1]))
+
+
+def _sum(terms):
+    terms = iter(terms)
+    out = next(terms)
+    for t in terms:
+        out = out + t
+    return out
 
 
 def skew(a):
@@ -112,9 +120,10 @@ def cross_motion(v, m):
 
 
 def cross_force(v, f):
-    """Spatial cross product v x* f of a motion vector with a force vector (6,)."""
-    w, vo = v[:3], v[3:]
-    return jnp.concatenate([jnp.cross(w, f[:3]) + jnp.cross(vo, f[3:]), jnp.cross(w, f[3:])])
+    """Spatial cross product v x* f of a motion vector with a force vector (..., 6)."""
+    w, vo = v[..., :3], v[..., 3:]
+    return jnp.concatenate([jnp.cross(w, f[..., :3]) + jnp.cross(vo, f[..., 3:]),
+                            jnp.cross(w, f[..., 3:])], -1)
 
 
 def spatial_inertia(mass, inertia_com_world, com_world):
