@@ -12,10 +12,12 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from .kinematics import Kin
 from .model import Model
-from .spatial import normalize, skew
+from .rows import place, take
+from .spatial import mtv, mv, normalize, skew
 
 
 class Contacts(NamedTuple):
@@ -27,6 +29,7 @@ class Contacts(NamedTuple):
     Jt: jnp.ndarray  # (C, 4, nv) along the friction directions t1, t2, -t1, -t2
     mu: jnp.ndarray  # (C,)
     e: jnp.ndarray  # (C,)
+    inv_mass: jnp.ndarray | None = None  # (C,) Jn M^-1 Jn^T in closed form (free bodies only)
 
 
 def tangents(n):
@@ -57,6 +60,8 @@ def detect_all(model: Model, prm: dict, kin: Kin) -> Contacts:
     J = jnp.zeros((C, 3, nv))
     mu = jnp.zeros(C)
     e = jnp.ones(C)
+    free = model.free_bodies is not None
+    inv_m = jnp.zeros(C) if free else None
     groups: dict = {}
     for pair in model.pairs:
         groups.setdefault((pair.kind_a, pair.kind_b), []).append(pair)
@@ -71,6 +76,11 @@ def detect_all(model: Model, prm: dict, kin: Kin) -> Contacts:
         normal = normal.at[rows].set(cp.normal)
         active = active.at[rows].set(cp.active)
         J = J.at[rows].set(Jrel)
+        if free:
+            ka_ = np.asarray([p.a for p in pairs])
+            kb_ = np.asarray([p.b for p in pairs])
+            inv_m = inv_m.at[rows].set(_inv_mass(model, prm, kin, ka_, cp.point_a, cp.normal)
+                                       + _inv_mass(model, prm, kin, kb_, cp.point_b, cp.normal))
         fr = jnp.stack([jnp.asarray(prm["effects"][p.friction]["coefficient"], dtype=float)
                         if p.friction is not None else jnp.asarray(0.0) for p in pairs])
         re = jnp.stack([jnp.asarray(prm["effects"][p.restitution]["coefficient"], dtype=float)
@@ -81,18 +91,35 @@ def detect_all(model: Model, prm: dict, kin: Kin) -> Contacts:
     t1, t2 = jax.vmap(tangents)(normal)
     T = jnp.stack([t1, t2, -t1, -t2], 1)  # (C, 4, 3): polyhedral cone with 4 edges
     Jt = jnp.einsum("cfk,ckn->cfn", T, J)
-    return Contacts(dist, normal, active, J, Jn, Jt, mu, e)
+    return Contacts(dist, normal, active, J, Jn, Jt, mu, e, inv_m)
+
+
+def _inv_mass(model: Model, prm: dict, kin: Kin, bodies, points, normal):
+    """(P, K) contribution 1/m + (r x n).I^-1 (r x n) of free ``bodies`` (P,) to the inverse
+    effective mass of contacts at ``points`` (P, K, 3) along ``normal``; 0 for static bodies."""
+    fb = model.free_bodies
+    B = model.nbody
+    inv_i = place(jnp.zeros((B, 3, 3)), fb, prm["free_inv_inertia"])[bodies]
+    inv_m = place(jnp.zeros(B), fb, 1.0 / take(prm["mass"], fb))[bodies]
+    rxn = jnp.cross(points - kin.com[bodies][:, None], normal)
+    u = mtv(kin.rot[bodies][:, None], rxn)  # body axes
+    return inv_m[:, None] + jnp.sum(u * mv(inv_i[:, None], u), -1)
 
 
 def compliant_tau(model: Model, con: Contacts, M, v):
-    """Generalized contact forces of the compliant model and the normal force per row."""
+    """Generalized contact forces of the compliant model and the normal force per row.
+
+    The effective mass per row comes from ``con.inv_mass`` when set (free bodies: M is not
+    needed, pass None), else from one solve with M."""
     from . import contact as cm
 
     vrel = jnp.einsum("ckn,n->ck", con.J, v)
     vn = jnp.sum(vrel * con.normal, -1)
     vt = vrel - vn[:, None] * con.normal
-    Minv_JnT = jnp.linalg.solve(M, con.Jn.T)  # (nv, C)
-    inv_meff = jnp.sum(con.Jn * Minv_JnT.T, -1)
+    if con.inv_mass is not None:
+        inv_meff = con.inv_mass
+    else:
+        inv_meff = jnp.sum(con.Jn * jnp.linalg.solve(M, con.Jn.T).T, -1)
     meff = 1.0 / jnp.where(inv_meff > 0, inv_meff, 1.0)
     fn, ft = cm.compliant_forces(con.dist, vn, vt, con.mu, con.e, meff)
     fn = jnp.where(con.active, fn, 0.0)

@@ -88,7 +88,8 @@ def _accel(model, prm, q, v, state, t, t_step):
     tau = None
     if model.ncon:
         con = cs.detect_all(model, prm, kin)
-        tau, cf = cs.compliant_tau(model, con, joint_mass_matrix(model, prm, kin), v)
+        M = None if con.inv_mass is not None else joint_mass_matrix(model, prm, kin)
+        tau, cf = cs.compliant_tau(model, con, M, v)
         cn = con.normal
     return accel(model, prm, kin, load, tau), cf, cn
 
