@@ -18,13 +18,16 @@ import arviz as az
 import numpy as np
 
 from .. import io
-from ..errors import ModelError
+from ..errors import PhysError
 from ..syntax import edit, format_source, loads
 from .candidates import Candidate, physics_candidates, sensor_candidates
 from .score import ScoreResult, jacobian, project_out, score_test, sensor_columns
 from .workflow import noise_unknowns, point_estimate, posterior_draws
 
 LFO_FRACTION = 0.7
+# what a refit may raise without ending the diagnosis: user-facing errors (model, inference)
+# and numerical failures of the fit (non-positive-definite Laplace Hessian)
+REFIT_FAILURES = (PhysError, np.linalg.LinAlgError, FloatingPointError)
 
 
 @dataclass
@@ -205,44 +208,59 @@ def quick_fit(model, seed: int = 0):
 
 
 def confirm(model, idata, ranked: list[Ranked], cands: dict, k: int, base_rms: float) -> None:
-    """Refit the best ``k`` physical candidates with the effect added; fill the comparison fields."""
+    """Refit the best ``k`` physical candidates with the effect added; fill the comparison fields.
+
+    A refit that fails (a model error, or a fit the inference cannot complete, e.g. a Laplace
+    Hessian that is not positive definite) leaves that candidate unconfirmed with a note; it
+    never ends the whole diagnosis.
+    """
     from ..compile import Model
-    from .workflow import check_model
 
     base_loo = combined_loo(idata)
     times = np.concatenate([o.obs.times for o in model.observed])
     cutoff = float(times.min() + LFO_FRACTION * (times.max() - times.min()))
-    base_cut = quick_fit(Model(model.scene, until=cutoff))
-    base_lfo = lfo_score(model, base_cut, cutoff)
+    try:
+        base_lfo = lfo_score(model, quick_fit(Model(model.scene, until=cutoff)), cutoff)
+    except REFIT_FAILURES:
+        base_lfo = None  # leave-future-out unavailable: judged on ΔELPD and RMS alone
     done = 0
     for r in ranked:
         if r.kind != "effect" or done >= k:
             continue
         done += 1
-        cand = cands[r.effect + "@" + r.target]
-        text = with_effect(model.scene, cand)
         try:
-            new = Model(_load_text(model.scene, text))
-            fit = quick_fit(new)
-        except ModelError as err:
-            r.note = f"refit failed: {err.message}"
+            _refit(model, r, cands[r.effect + "@" + r.target], base_loo, base_lfo, cutoff, base_rms)
+        except REFIT_FAILURES as err:
+            r.note = f"refit failed: {getattr(err, 'message', None) or err}"
             r.confirmed = False
-            continue
-        rep = check_model(new, fit)
-        new_loo = combined_loo(fit)
-        diff = np.asarray(new_loo.loo_i) - np.asarray(base_loo.loo_i)
-        r.delta_elpd = float(diff.sum())
-        r.delta_elpd_se = float(np.sqrt(len(diff)) * diff.std())
+
+
+def _refit(model, r: Ranked, cand: Candidate, base_loo, base_lfo, cutoff: float,
+           base_rms: float) -> None:
+    """Fit the scene with ``cand`` added and fill ``r``'s comparison fields."""
+    from ..compile import Model
+    from .workflow import check_model
+
+    text = with_effect(model.scene, cand)
+    new = Model(_load_text(model.scene, text))
+    fit = quick_fit(new)
+    rep = check_model(new, fit)
+    new_loo = combined_loo(fit)
+    diff = np.asarray(new_loo.loo_i) - np.asarray(base_loo.loo_i)
+    r.delta_elpd = float(diff.sum())
+    r.delta_elpd_se = float(np.sqrt(len(diff)) * diff.std())
+    if base_lfo is not None:
         new_cut = quick_fit(Model(new.scene, until=cutoff))
         r.delta_lfo = lfo_score(new, new_cut, cutoff) - base_lfo
-        r.rms_before, r.rms_after = base_rms, float(rep.rms_sigma)
-        key = unknown_key(model.scene, cand)
-        r.fitted = {"name": key, "median": float(np.median(fit.posterior[key].values)),
-                    "q5": float(np.quantile(fit.posterior[key].values, 0.05)),
-                    "q95": float(np.quantile(fit.posterior[key].values, 0.95))}
-        r.snippet = _snippet(format_source(model.scene.source), text)
-        r.confirmed = bool(r.delta_elpd > 2 * max(r.delta_elpd_se, 1.0) and r.delta_lfo > 0
-                           and r.rms_after < 0.9 * base_rms)
+    r.rms_before, r.rms_after = base_rms, float(rep.rms_sigma)
+    key = unknown_key(model.scene, cand)
+    r.fitted = {"name": key, "median": float(np.median(fit.posterior[key].values)),
+                "q5": float(np.quantile(fit.posterior[key].values, 0.05)),
+                "q95": float(np.quantile(fit.posterior[key].values, 0.95))}
+    r.snippet = _snippet(format_source(model.scene.source), text)
+    r.confirmed = bool(r.delta_elpd > 2 * max(r.delta_elpd_se, 1.0)
+                       and (r.delta_lfo is None or r.delta_lfo > 0)
+                       and r.rms_after < 0.9 * base_rms)
 
 
 ELPD_TIE = 4.0  # ΔELPD differences below this are ties, settled by leave-future-out

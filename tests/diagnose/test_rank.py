@@ -100,3 +100,24 @@ def test_joint_damping_ranks_first_on_a_pendulum(fitted):
     friction = _row(d, "joint_friction@hinge")
     assert damping.statistic > friction.statistic + 6.0, d.table()
     assert damping.statistic >= _row(d, "quadratic_drag@bob").statistic, d.table()
+
+
+def test_a_failing_refit_leaves_the_candidate_unconfirmed(quadratic, monkeypatch):
+    """A refit the inference cannot finish (here: a Laplace Hessian that is not positive
+    definite) is noted on its row; the diagnosis goes on."""
+    import copy
+
+    from physdsl.diagnose import rank
+
+    def failing_fit(model, seed=0):
+        raise np.linalg.LinAlgError("Matrix is not positive definite")
+
+    monkeypatch.setattr(rank, "quick_fit", failing_fit)
+    d = quadratic.diagnosis
+    rows = copy.deepcopy(d.ranking)
+    cands = {c.key: c for c in rank.physics_candidates(quadratic.model.scene)}
+    rank.confirm(quadratic.model, quadratic.idata, rows, cands, 2, d.rms_sigma)
+    tried = [r for r in rows if r.confirmed is not None]
+    assert len(tried) == 2 and all(r.kind == "effect" for r in tried)
+    for r in tried:
+        assert r.confirmed is False and r.note.startswith("refit failed: Matrix is not positive")
