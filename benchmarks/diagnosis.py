@@ -118,7 +118,10 @@ def main() -> None:
             proc = subprocess.run(cmd, capture_output=True, text=True, timeout=args.timeout)
             line = next((ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")), None)
             if line is None:
-                tail = (proc.stderr.strip().splitlines() or ["no output"])[-1]
+                lines = [ln for ln in proc.stderr.strip().splitlines()
+                         if ln.strip() and not ln.startswith(("For simplicity", "-----"))]
+                errs = [ln for ln in lines if "Error" in ln.split(":")[0]]
+                tail = (errs or lines or ["no output"])[-1]
                 res = {"case": name, "error": f"failed (exit {proc.returncode}): {tail}"}
             else:
                 res = json.loads(line[len("RESULT "):])
