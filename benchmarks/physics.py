@@ -1,7 +1,8 @@
 """Physics engine benchmark: prints ``name: value`` lines.
 
-steps_per_s.<scene> (single rollout, after compile), batchN_body_steps_per_s.<scene> (vmap
-over N scenes, moving bodies x steps per second), grad_over_forward.<scene> (reverse-mode
+steps_per_s.<scene> (single rollout, after compile), compile_cpu_s.<scene> and
+grad_compile_cpu_s.<scene> (CPU seconds to compile the rollout and its gradient),
+batch1024_body_steps_per_s.<scene> (vmap over 1024 scenes, moving bodies x steps per second), grad_over_forward.<scene> (reverse-mode
 gradient time / forward time), mujoco_steps_per_s.<scene> (mj_step on the same scene),
 float32 vs float64 steps_per_s for the pendulum, and benchmarks/contact.py's lines if present.
 Run: .venv/bin/python benchmarks/physics.py
@@ -113,6 +114,13 @@ def mujoco_rate(xml, steps=5000):
     return steps / (time.perf_counter() - t0)
 
 
+def compile_s(f, *args):
+    """CPU seconds to lower and compile f for args (robust to other load on the machine)."""
+    t0 = time.process_time()
+    f.lower(*args).compile()
+    return time.process_time() - t0
+
+
 def bench(name, builder, batches):
     s, xml, vals, key = builder()
     sim = build_simulator(s)
@@ -120,9 +128,11 @@ def bench(name, builder, batches):
     nsteps = len(sim.times) - 1
     moving = sum(1 for j in sim.model.joints if j.nv)
     fwd = jax.jit(lambda v: sim.simulate(v).body_pos)
+    print(f"compile_cpu_s.{name}: {compile_s(fwd, vals):.1f}", flush=True)
     t_f = timed(fwd, vals)
     print(f"steps_per_s.{name}: {nsteps / t_f:.0f}", flush=True)
     grad = jax.jit(jax.grad(lambda v: jnp.sum(sim.simulate(v).body_pos[:, :, 2])))
+    print(f"grad_compile_cpu_s.{name}: {compile_s(grad, vals):.1f}", flush=True)
     t_g = timed(grad, vals)
     print(f"grad_over_forward.{name}: {t_g / t_f:.2f}", flush=True)
     for n in batches:
@@ -154,10 +164,11 @@ def main():
         single_pendulum()
         return
     t0 = time.time()
-    bench("ball", ball, (1, 64, 1024))
-    bench("pendulum", pend, (1, 64, 1024))
-    bench("chain10", chain10, (1, 64, 1024))
-    bench("balls16", balls16, (1, 64, 1024))
+    # one batch size per scene (each batch size is a compile of its own): the 1024 lanes
+    bench("ball", ball, (1024,))
+    bench("pendulum", pend, (1024,))
+    bench("chain10", chain10, (1024,))
+    bench("balls16", balls16, (1024,))
     single_pendulum()
     print(float32_line())
     contact = HERE / "contact.py"

@@ -79,8 +79,9 @@ class Simulator:
         """The numeric params pytree for ``values`` (masses, inertia, poses, effects, q0, v0)."""
         return evaluate_params(self.scene, self.model, values)
 
-    def _trajectory(self, values):
-        """States (q (T+1, nq), v (T+1, nv), contact normal force (T+1, C)) for ``values``."""
+    def _trajectory(self, values, checkpoint: bool = False):
+        """States (q (T+1, nq), v (T+1, nv), contact normal force (T+1, C)) for ``values``;
+        ``checkpoint``: recompute each step in reverse mode (O(T) memory)."""
         model = self.model
         prm = evaluate_params(self.scene, model, values)
         dtype = prm["ref_pos"].dtype
@@ -100,7 +101,7 @@ class Simulator:
                 state, _ = jax.lax.scan(substep, state, i * ns + jnp.arange(ns))
             return state, (state.q, state.v, state.contact_force)
 
-        if self._reverse:  # reverse mode through the scan: recompute each step, O(T) memory
+        if checkpoint:
             record = jax.checkpoint(record)
         _, traj = jax.lax.scan(record, s0, jnp.arange(model.nsteps))
         first = (s0.q, s0.v, s0.contact_force)
@@ -111,9 +112,10 @@ class Simulator:
         model = self.model
         n_in = sum(int(np.size(x)) for x in jax.tree_util.tree_leaves(values)
                    if jnp.issubdtype(jnp.result_type(x), jnp.floating))
-        self._reverse = not 0 < n_in <= FORWARD_MODE_MAX
-        traj = self._trajectory if self._reverse else forward_mode(self._trajectory)
-        q, v, cf = traj(values)
+        if 0 < n_in <= FORWARD_MODE_MAX:
+            q, v, cf = forward_mode(lambda x: self._trajectory(x))(values)
+        else:
+            q, v, cf = self._trajectory(values, checkpoint=True)
         prm = evaluate_params(self.scene, model, values)
         pos, quat, lin, ang, jp, jv = jax.vmap(lambda q, v: observe(model, prm, q, v))(q, v)
         t = jnp.arange(model.nsteps + 1, dtype=q.dtype) * model.dt
