@@ -31,5 +31,5 @@ def test_refine_adds_the_hidden_drag_and_reaches_the_noise(tmp_path):
     assert [r["rms_sigma"] for r in data["rounds"]] == pytest.approx([r0.rms_sigma, r1.rms_sigma])
     new = load(tmp_path / "out" / "round-1" / "scene.phys")  # loads: its data were copied
     assert ("quadratic_drag", ("ball",)) in {(e.effect, tuple(e.target)) for e in new.effects}
-    assert (tmp_path / "out" / "round-0" / "diagnosis" / "fix.phys").read_text().strip().startswith(
-        "effect quadratic_drag on ball")
+    fix = (tmp_path / "out" / "round-0" / "diagnosis" / "fix.phys").read_text()
+    assert fix.strip().startswith("effect quadratic_drag on ball")
