@@ -61,7 +61,7 @@ def _targets(scene: Scene, decl: EffectDecl):
         for j in scene.joints:
             if j.kind in ("hinge", "slider"):
                 yield (j.name,), ()
-    if "pair" in kinds:
+    if "pair" in kinds and decl.name != "damper":
         for pair in scene.contact_pairs:
             yield tuple(pair), ()
 
