@@ -121,3 +121,20 @@ def test_a_failing_refit_leaves_the_candidate_unconfirmed(quadratic, monkeypatch
     assert len(tried) == 2 and all(r.kind == "effect" for r in tried)
     for r in tried:
         assert r.confirmed is False and r.note.startswith("refit failed: Matrix is not positive")
+
+
+def test_candidates_of_a_contact_scene(tmp_path):
+    """Pair effects on the contact pair, body effects on the ball, no damper without a spring,
+    nothing already in the scene (its contact friction)."""
+    from physdsl.diagnose.candidates import physics_candidates, sensor_candidates
+
+    from .conftest import ROLL, load_scene, write_csv
+
+    write_csv(tmp_path / "data.csv", [0.0, 0.1], np.zeros((2, 3)), "ball")
+    scene = load_scene(tmp_path, ROLL)
+    keys = {c.key for c in physics_candidates(scene)}
+    assert {"restitution@floor,ball", "rolling_resistance@floor,ball", "linear_drag@ball",
+            "quadratic_drag@ball", "wind@ball"} <= keys
+    assert not any(k.startswith(("damper@", "contact_friction@", "spring@", "gravity@")) for k in keys)
+    assert {c.key for c in sensor_candidates(scene)} == {
+        f"{k}@ball.position" for k in ("offset", "gain", "delay")}
