@@ -8,8 +8,6 @@ import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from .. import io
 from ..compile import Model
 from ..syntax import load
@@ -31,7 +29,8 @@ def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", cha
            warmup: int = 300, samples: int = 300, seed: int = 0, force: bool = False,
            confirm_top: int = 2, echo=print) -> list[Round]:
     """Fit, check, diagnose and extend the scene until it explains the data; returns the rounds."""
-    from .rank import combined_loo, diagnose, with_effect, _load_text  # noqa: F401
+    from .candidates import physics_candidates
+    from .rank import combined_loo, diagnose, with_effect
 
     out = io.prepare_outdir(outdir, force=force)
     scene_path = Path(scene_path)
@@ -66,15 +65,11 @@ def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", cha
         w = diag.winner
         added = {"effect": w.effect, "target": w.target}
         nxt = out / f"round-{k + 1}" / "scene.phys"
-        from .candidates import Candidate
-        from .rank import physics_candidates
-
         cand = next(c for c in physics_candidates(model.scene) if c.key == f"{w.effect}@{w.target}")
         text = with_effect(model.scene, cand)
         io.write_text(nxt, text)
         _copy_data(scene_path.parent, nxt.parent)
         echo(f"round {k}: added `{w.snippet.strip()}` -> {nxt}")
-        del Candidate
         current = nxt
     _write_summary(out, rounds)
     return rounds
