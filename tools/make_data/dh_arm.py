@@ -13,7 +13,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from mjgen import EXAMPLES, add_noise, mjcf, rollout, write_angles, write_positions, write_truth
+from mjgen import mjcf, rollout, write_angle_example
 
 NAME = "dh_arm"
 JOINTS = ("j1", "j2", "j3", "j4")
@@ -87,13 +87,7 @@ def simulate(truth: dict) -> tuple[np.ndarray, dict[str, np.ndarray], dict[str, 
 
 
 def main() -> None:
-    out = EXAMPLES / NAME
-    out.mkdir(parents=True, exist_ok=True)
-    t, angles, positions = simulate(TRUTH)
-    rng = np.random.default_rng(TRUTH["noise"]["seed"])
-    write_angles(out / "joints.csv", t, add_noise(angles, TRUTH["noise"]["sigma_angle_rad"], rng))
-    write_positions(out / "trajectory.csv", t, add_noise(positions, TRUTH["noise"]["sigma_position_m"], rng))
-    write_truth(out / "truth.json", TRUTH)
+    write_angle_example(NAME, TRUTH, simulate)
 
 
 if __name__ == "__main__":

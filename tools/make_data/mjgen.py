@@ -98,3 +98,14 @@ def write_truth(path: Path, truth: dict) -> None:
 
 def load_truth(path: Path) -> dict:
     return json.loads(path.read_text())
+
+
+def write_angle_example(name: str, truth: dict, simulate) -> None:
+    """Simulate ``truth`` and write joints.csv, trajectory.csv (noisy) and truth.json for ``name``."""
+    out = EXAMPLES / name
+    out.mkdir(parents=True, exist_ok=True)
+    t, angles, positions = simulate(truth)
+    rng = np.random.default_rng(truth["noise"]["seed"])
+    write_angles(out / "joints.csv", t, add_noise(angles, truth["noise"]["sigma_angle_rad"], rng))
+    write_positions(out / "trajectory.csv", t, add_noise(positions, truth["noise"]["sigma_position_m"], rng))
+    write_truth(out / "truth.json", truth)
