@@ -218,9 +218,9 @@ def check_axis(res: Residuals, j: int, wins: list[Window]) -> AxisResult:
     consistent = tests.n < 5 or min(p_values.values()) >= ALPHA / 5
     inside = (res.measured[:, j] >= res.band_lo[:, j]) & (res.measured[:, j] <= res.band_hi[:, j])
     coverage = float(np.mean(inside[ok])) if ok.any() else float("nan")
-    scores = shape_scores(t, res.error[:, j], res.noise[:, j], res.mean[:, j],
+    scores = shape_scores(t, res.error[:, j], res.noise[:, j], res.center[:, j],
                           res.velocity[:, j], res.speed)
-    env = envelope(t, res.measured[:, j], res.mean[:, j])
+    env = envelope(t, res.measured[:, j], res.center[:, j])
     after = after_event(t, r, res.events, guard=max(1, smoothing_width(tests.n) // 2),
                         alpha=ALPHA) if not consistent else None
     return AxisResult(res.name, res.axes[j], res.unit, tests.n, tests.rms_sigma, tests.mean_sigma,
@@ -256,7 +256,7 @@ def explain(res: Residuals, j: int, ax: AxisResult) -> Finding | None:
         e = ax.after
         a, b = e.event, tv[-1]
         post = t >= e.event
-        scores = shape_scores(t[post], res.error[post, j], res.noise[post, j], res.mean[post, j],
+        scores = shape_scores(t[post], res.error[post, j], res.noise[post, j], res.center[post, j],
                               res.velocity[post, j], None if res.speed is None else res.speed[post])
         best = best_shape(scores)
         detail = (f"misfit starts after the contact at t={e.event:.3g} s: {fmt_sigma(e.rms_before)}"

@@ -71,13 +71,13 @@ def _mark_events(ax, events: tuple[float, ...]) -> None:
 
 
 def plot_fit(res: Residuals, flags: list["Finding"]) -> Figure:
-    """Measured vs mean prediction with the predictive band, one panel per axis."""
+    """Measured vs central prediction with the predictive band, one panel per axis."""
     fig, axs = _axes(len(res.axes))
     for j, ax in enumerate(axs):
         ok = res.valid[:, j]
         ax.fill_between(res.times, res.band_lo[:, j], res.band_hi[:, j], color="tab:blue",
                         alpha=0.2, lw=0, label=f"{res.band_level:.0%} predictive band")
-        ax.plot(res.times, res.mean[:, j], color="tab:blue", lw=1.2, label="model (mean)")
+        ax.plot(res.times, res.center[:, j], color="tab:blue", lw=1.2, label="model")
         ax.plot(res.times[ok], res.measured[ok, j], ".", ms=3, color="k", label="measured")
         _mark_events(ax, res.events)
         ax.set_ylabel(f"{res.axes[j]} [{res.unit}]")

@@ -1,8 +1,15 @@
 """Standardised residuals of measurements against posterior-predictive draws.
 
 An ``ObservableFit`` is what the inference stage hands over for one measured quantity; ``residuals``
-turns it into the arrays every later test works on: r = (measured - mean prediction) / noise, with
-noise the posterior-mean noise scale, and the predictive band from the draws plus noise.
+turns it into the arrays every later test works on: r = (measured - central prediction) / noise,
+with noise the posterior-mean noise scale, and the predictive band from the draws plus noise.
+
+The central prediction is the model's trajectory at the posterior median of the unknowns
+(``ObservableFit.point``) when given, else the mean over draws. The plug-in is the principled
+choice for judging a *model*: it is a trajectory the model can actually produce (the mean of
+draws that bounce at slightly different times is not: it smears every bounce into a ramp), it
+is robust to the odd wild draw of an approximate posterior, and it is the very point at which
+``diagnose`` linearises its score tests. The draws still give the predictive band.
 """
 from __future__ import annotations
 
@@ -23,8 +30,9 @@ class ObservableFit:
     mask: np.ndarray          # (N, D) bool, True where measured
     predicted: np.ndarray     # (S, N, D) posterior draws of the noise-free model prediction
     noise_sigma: np.ndarray   # (S, D) or (S, N, D) posterior draws of the noise scale; broadcastable
-    speed: np.ndarray | None  # (N,) model speed of the observed body/joint (posterior mean)
+    speed: np.ndarray | None  # (N,) model speed of the observed body/joint (at the posterior median)
     events: tuple[float, ...]  # times of contacts/impacts detected in the model (may be empty)
+    point: np.ndarray | None = None  # (N, D) prediction at the posterior median of the unknowns
 
 
 @dataclass(frozen=True)
@@ -37,11 +45,11 @@ class Residuals:
     times: np.ndarray      # (N,)
     measured: np.ndarray   # (N, D), NaN where unmeasured
     valid: np.ndarray      # (N, D) bool: measured and finite
-    mean: np.ndarray       # (N, D) posterior mean of the noise-free prediction
+    center: np.ndarray     # (N, D) central noise-free prediction (``fit.point``, else draws' mean)
     noise: np.ndarray      # (N, D) posterior mean of the noise scale
-    error: np.ndarray      # (N, D) measured - mean, in the observable's unit (NaN where invalid)
+    error: np.ndarray      # (N, D) measured - center, in the observable's unit (NaN where invalid)
     r: np.ndarray          # (N, D) standardised residual error / noise (NaN where invalid)
-    velocity: np.ndarray   # (N, D) time derivative of the mean prediction
+    velocity: np.ndarray   # (N, D) time derivative of the central prediction
     band_lo: np.ndarray    # (N, D) lower edge of the central predictive band (draws + noise)
     band_hi: np.ndarray    # (N, D) upper edge
     band_level: float      # probability mass inside [band_lo, band_hi]
@@ -86,6 +94,8 @@ def validate(fit: ObservableFit) -> tuple[np.ndarray, np.ndarray, np.ndarray, np
                          f"expected (S, D) or (S, N, D) with S={s}, N={n}, D={d}") from None
     if not np.all(np.isfinite(noise)) or np.any(noise <= 0):
         raise ValueError(f"{fit.name}: noise_sigma must be finite and positive")
+    if fit.point is not None and np.shape(fit.point) != (n, d):
+        raise ValueError(f"{fit.name}: point has shape {np.shape(fit.point)}, expected {(n, d)}")
     if fit.speed is not None and np.shape(fit.speed) != (n,):
         raise ValueError(f"{fit.name}: speed has shape {np.shape(fit.speed)}, expected ({n},)")
     return times, measured, mask & np.isfinite(measured), predicted, noise
@@ -95,19 +105,19 @@ def residuals(fit: ObservableFit, *, band_level: float = 0.95, max_draws: int = 
               seed: int = 0) -> Residuals:
     """Standardised residuals and predictive band of one observable (deterministic: fixed seed)."""
     times, measured, valid, predicted, noise = validate(fit)
-    mean = predicted.mean(axis=0)
+    center = predicted.mean(axis=0) if fit.point is None else np.asarray(fit.point, dtype=float)
     noise_mean = noise.mean(axis=0)
-    error = np.where(valid, measured - mean, np.nan)
+    error = np.where(valid, measured - center, np.nan)
     r = error / noise_mean
     lo, hi = predictive_band(predicted, noise, band_level, max_draws, seed)
     if times.size > 1:
-        velocity = np.gradient(mean, times, axis=0)
+        velocity = np.gradient(center, times, axis=0)
     else:
-        velocity = np.zeros_like(mean)
+        velocity = np.zeros_like(center)
     speed = None if fit.speed is None else np.asarray(fit.speed, dtype=float)
     return Residuals(
         name=fit.name, axes=tuple(fit.axes), unit=fit.unit, times=times,
-        measured=np.where(valid, measured, np.nan), valid=valid, mean=mean, noise=noise_mean,
+        measured=np.where(valid, measured, np.nan), valid=valid, center=center, noise=noise_mean,
         error=error, r=r, velocity=velocity, band_lo=lo, band_hi=hi, band_level=band_level,
         speed=speed, events=tuple(sorted(float(e) for e in fit.events)),
     )

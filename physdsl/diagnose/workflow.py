@@ -59,10 +59,12 @@ def events(model, rollout) -> tuple[float, ...]:
 
 
 def observable_fits(model, idata, max_draws: int = MAX_DRAWS) -> list[ObservableFit]:
-    """One ObservableFit per trajectory observation, from posterior-predictive draws."""
+    """One ObservableFit per trajectory observation: posterior-predictive draws (the band) and
+    the prediction at the posterior median of the unknowns (the residuals)."""
     draws = posterior_draws(model, idata, max_draws)
     values = point_estimate(draws)
     rollout = model.simulate(values)
+    central = {k: np.asarray(v) for k, v in model.predict(values, rollout).items()}
     evs = events(model, rollout)
     pp = idata.posterior_predictive
     fits = []
@@ -76,11 +78,13 @@ def observable_fits(model, idata, max_draws: int = MAX_DRAWS) -> list[Observable
         sig = np.stack([np.asarray(model.noise_scale(obs, {k: v[i] for k, v in draws.items()}))
                         for i in range(min(n, len(pred)))]) if draws else \
             np.asarray(model.noise_scale(obs, {}))[None]
+        point = central[obs.name]
         measured = obs.values
         mask = o.mask
         if obs.quantity == "orientation":
             measured = np.asarray(trajectory.rotation_vector(jnp.asarray(o.measured)))
             pred = np.asarray(trajectory.rotation_vector(jnp.asarray(pred)))
+            point = np.asarray(trajectory.rotation_vector(jnp.asarray(point)))
         speed = None
         if obs.quantity == "position":
             vel = np.asarray(rollout.body_vel[:, model.simulator.body_names.index(obs.target)])
@@ -92,7 +96,7 @@ def observable_fits(model, idata, max_draws: int = MAX_DRAWS) -> list[Observable
         fits.append(ObservableFit(
             name=obs.name, axes=trajectory.axes(obs.quantity), unit=_unit(obs.quantity),
             times=obs.times, measured=np.where(mask, measured, np.nan), mask=mask,
-            predicted=pred[: len(sig)], noise_sigma=sig, speed=speed, events=evs))
+            predicted=pred[: len(sig)], noise_sigma=sig, speed=speed, events=evs, point=point))
     return fits
 
 

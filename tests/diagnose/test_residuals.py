@@ -9,12 +9,12 @@ from physdsl.diagnose.residuals import ObservableFit, residuals
 from physdsl.diagnose.windows import choose_windows, rms, running_mean, systematic_spans
 
 
-def fit_of(measured, predicted, noise, mask=None, times=None, speed=None, events=()):
+def fit_of(measured, predicted, noise, mask=None, times=None, speed=None, events=(), point=None):
     n, d = measured.shape
     times = np.arange(n) * 0.01 if times is None else times
     mask = np.ones((n, d), bool) if mask is None else mask
     return ObservableFit("b.p", tuple("xyz"[:d]), "m", times, measured, mask, predicted, noise,
-                         speed, events)
+                         speed, events, point)
 
 
 def test_standardised_residual_is_error_over_mean_noise():
@@ -31,6 +31,34 @@ def test_standardised_residual_is_error_over_mean_noise():
     # (S, D) and (S, N, D) noise give the same answer
     full = np.broadcast_to(noise[:, None, :], (3, 5, 2))
     assert np.allclose(residuals(fit_of(measured, predicted, full, mask)).r[mask], res.r[mask])
+
+
+def drop(t, h0, e=0.8, g=9.81):
+    """Height of a ball dropped from rest at h0 that bounces once with restitution e."""
+    t_hit = np.sqrt(2 * h0 / g)
+    tau = t - t_hit
+    return np.where(t < t_hit, h0 - 0.5 * g * t**2, e * g * t_hit * tau - 0.5 * g * tau**2)
+
+
+def test_residuals_from_the_point_prediction_not_the_mean_of_draws():
+    """An approximate posterior with a few wild draws (a Laplace approximation across a bounce
+    can have a near-flat direction): the draws' mean is far from every trajectory the model
+    gives; the prediction at the median parameters fits the data to the noise."""
+    rng = np.random.default_rng(3)
+    t = np.linspace(0, 0.8, 161)
+    sigma = 0.003
+    measured = (drop(t, 0.8) + sigma * rng.standard_normal(t.size))[:, None]
+    h0 = np.r_[0.8 + 0.001 * rng.standard_normal(198), 5.0, 9.0]
+    predicted = np.stack([drop(t, h) for h in h0])[:, :, None]
+    point = drop(t, np.median(h0))[:, None]
+    noise = np.full((h0.size, 1), sigma)
+    smeared = residuals(fit_of(measured, predicted, noise, times=t))
+    central = residuals(fit_of(measured, predicted, noise, times=t, point=point))
+    assert rms(smeared.r) > 10.0
+    assert rms(central.r) < 1.3
+    assert np.allclose(central.center, point)
+    with pytest.raises(ValueError, match="point"):
+        residuals(fit_of(measured, predicted, noise, times=t, point=point[1:]))
 
 
 def test_predictive_band_has_its_coverage_and_includes_parameter_spread():
