@@ -14,17 +14,20 @@ candidate, then refits of the best ``--confirm`` physical candidates) and report
 - ``delta_elpd.CASE`` / ``delta_lfo.CASE``: the winner's and the true effect's evidence
   (when the true effect was among the refitted candidates),
 - ``fitted.CASE``: the winner's fitted strength (median and 90% interval) and the truth,
-- ``seconds.CASE``: wall time (fit, score tests, confirmation).
+- ``seconds.CASE``: wall time (fit, score tests, confirmation) and ``cpu_seconds.CASE``, the
+  CPU time of the case's process (wall time on a shared machine is inflated by other load;
+  the load average is printed with it).
 
 Each case runs in its own process with a time limit (``--timeout``, seconds), so a case that
 cannot finish is reported as such and the others still run.
 
-Run: .venv/bin/python benchmarks/diagnosis.py [--cases thrown_ball,pendulum] [--confirm 2]
+Run: .venv/bin/python benchmarks/diagnosis.py [--case thrown_ball [--case pendulum]] [--confirm 2]
 """
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import time
@@ -48,7 +51,7 @@ def run_case(name: str, confirm: int, seed: int) -> dict:
     truth = json.loads((folder / "truth.json").read_text())
     hidden = truth["hidden_effect"]
     true_key = f"{hidden['effect']}@{hidden['target']}"
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     model = Model(load(folder / "naive.phys"))
     idata = model.infer(backend="map", chains=2, warmup=300, samples=200, seed=seed,
                         progress=False)
@@ -79,6 +82,7 @@ def run_case(name: str, confirm: int, seed: int) -> dict:
         "winner_delta_lfo": w.delta_lfo if w else None,
         "seconds_fit": t1 - t0, "seconds_score": diag.seconds.get("score_tests"),
         "seconds_confirm": diag.seconds.get("confirmation"), "seconds": t2 - t0,
+        "cpu_seconds": time.process_time() - c0,
     }
     if w is not None and w.fitted:
         truth_value = None
@@ -98,7 +102,8 @@ def _fmt(v, spec="") -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--cases", default="", help="comma-separated case names (default: all)")
+    ap.add_argument("--case", action="append", default=[],
+                    help="a case to run (repeat for several; default: all)")
     ap.add_argument("--confirm", type=int, default=2, help="physical candidates to refit")
     ap.add_argument("--timeout", type=float, default=2400.0, help="seconds per case")
     ap.add_argument("--seed", type=int, default=0)
@@ -107,8 +112,11 @@ def main() -> None:
     if args.one:
         print("RESULT " + json.dumps(run_case(args.one, args.confirm, args.seed)), flush=True)
         return
-    names = [n for n in args.cases.split(",") if n] or sorted(
-        p.name for p in CASES.iterdir() if (p / "truth.json").exists())
+    known = sorted(p.name for p in CASES.iterdir() if (p / "truth.json").exists())
+    unknown = [n for n in args.case if n not in known]
+    if unknown:
+        ap.error(f"no case {', '.join(unknown)} in examples/hidden-effect (cases: {', '.join(known)})")
+    names = args.case or known
     results = []
     for name in names:
         t0 = time.perf_counter()
@@ -128,6 +136,7 @@ def main() -> None:
         except subprocess.TimeoutExpired:
             res = {"case": name, "error": f"did not finish within {args.timeout:.0f} s"}
         res.setdefault("seconds", time.perf_counter() - t0)
+        res["load"] = " ".join(f"{x:.1f}" for x in os.getloadavg())
         results.append(res)
         _print_lines(res)
     print()
@@ -154,20 +163,27 @@ def _print_lines(r: dict) -> None:
         print(f"fitted.{n}: {f['name']} = {f['median']:.4g} [{f['q5']:.4g}, {f['q95']:.4g}] "
               f"(truth {_fmt(f['truth'], '.4g')})")
     print(f"seconds.{n}: {r['seconds']:.0f} (fit {r['seconds_fit']:.0f}, score "
-          f"{r['seconds_score']:.0f}, confirm {r['seconds_confirm']:.0f})", flush=True)
+          f"{r['seconds_score']:.0f}, confirm {r['seconds_confirm']:.0f})")
+    print(f"cpu_seconds.{n}: {r['cpu_seconds']:.0f}")
+    print(f"load_average.{n}: {r['load']}", flush=True)
 
 
 def _table(results: list[dict]) -> str:
-    lines = ["| case | true effect | score rank (physical) | final rank | winner | RMS before → after | time (s) |",
-             "|---|---|---|---|---|---|---|"]
+    lines = ["| case | true effect | score rank (physical) | final rank | winner | RMS before → after "
+             "| fitted (90%) vs truth | wall / CPU (s) | load |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for r in results:
         if "error" in r:
-            lines.append(f"| {r['case']} | | | | {r['error']} | | {r['seconds']:.0f} |")
+            lines.append(f"| {r['case']} | | | | {r['error']} | | | {r['seconds']:.0f} | {r['load']} |")
             continue
         rms = f"{r['rms_before']:.2f}σ → {_fmt(r['rms_after'], '.2f')}σ"
+        f = r.get("fitted")
+        fitted = (f"{f['median']:.4g} [{f['q5']:.4g}, {f['q95']:.4g}] vs {_fmt(f['truth'], '.4g')}"
+                  if f else "")
         lines.append(f"| {r['case']} | {r['true']} | {_fmt(r['score_rank'])}/{r['n_physical']} | "
                      f"{_fmt(r['rank'])}/{r['n_candidates']} | {r['winner'] or 'none'} | {rms} | "
-                     f"{r['seconds']:.0f} |")
+                     f"{fitted} | {r['seconds']:.0f} / {_fmt(r.get('cpu_seconds'), '.0f')} | "
+                     f"{r['load']} |")
     return "\n".join(lines)
 
 
