@@ -31,7 +31,7 @@ def test_closed_form_hits_match_marching(kind):
         tuple(o.T), tuple(d.T), kind, size))(jnp.asarray(o), jnp.asarray(d))
     ts = np.linspace(0.0, 1.0, 6001)
     pts = o[:, None, :] + ts[None, :, None] * d[:, None, :]
-    field = np.asarray(sdf(kind, jnp.asarray(pts), size))
+    field = np.asarray(jax.jit(lambda p: sdf(kind, p, size))(jnp.asarray(pts)))
     hit_true = field.min(axis=1) < 0
     hit = np.asarray(sd) < 0
     near_edge = np.abs(field.min(axis=1)) < 3e-4  # grazing rays: sampling decides
@@ -54,7 +54,7 @@ def test_closed_form_hits_match_marching(kind):
     # normals: unit, and the SDF gradient at the hit point
     n = np.stack(normal, axis=-1)[ok]
     p = o[ok] + np.asarray(depth)[ok, None] * d[ok]
-    g = np.asarray(jax.vmap(jax.grad(lambda q: sdf(kind, q, size)))(jnp.asarray(p)))
+    g = np.asarray(jax.jit(jax.vmap(jax.grad(lambda q: sdf(kind, q, size))))(jnp.asarray(p)))
     away = np.abs(p).max(axis=1) >= 0  # all; edges/corners of box/cylinder are measure zero
     cos = np.sum(n * g, axis=1) / np.linalg.norm(g, axis=1)
     assert np.mean(cos[away] > 0.999) > 0.97

@@ -90,9 +90,10 @@ def test_likelihood_gradients_match_finite_differences():
 
 def test_pyramid_likelihood_decreases_monotonically_away_from_truth():
     r = 0.03
-    observed = render(_sphere(0.0, r=r), LIGHT, CAM, BG, 0.5)
     shifts = np.linspace(0, 5 * r, 21)
-    imgs = jax.vmap(lambda x: render(_sphere(x, r=r), LIGHT, CAM, BG, 0.5))(jnp.asarray(shifts))
+    imgs = jax.vmap(lambda x: render(_sphere(x, r=r), LIGHT, CAM, BG, 0.5, kinds=(0,)))(
+        jnp.asarray(shifts))
+    observed = imgs[0]
     lik = jax.jit(jax.vmap(image_log_likelihood, in_axes=(0, None, None, None)),
                   static_argnums=3)
     ll3 = np.asarray(lik(imgs, observed, 0.05, 3))
