@@ -2,8 +2,8 @@
 
 1. Candidates (``candidates.py``): library effects that could act and are absent, on every
    target, plus sensor faults per observation.
-2. Score tests (``score.py``) at the posterior median with all candidates switched off, in
-   one augmented model: one forward-mode Jacobian for all of them.
+2. Score tests (``score.py``) at the fit (the most likely posterior draw) with all
+   candidates switched off, in one augmented model: one Jacobian for all of them.
 3. The best ``confirm`` physical candidates are refitted with the effect added; they are
    compared by PSIS-LOO (arviz), leave-future-out log predictive density (fit on the first
    70% of the recording, predict the rest) and residual RMS in noise units.
@@ -50,6 +50,7 @@ class Ranked:
     rms_after: float | None = None
     fitted: dict | None = None
     snippet: str | None = None
+    same_as: str | None = None  # "effect@target" of a better ranked candidate that acts alike
     note: str = ""
 
 
@@ -131,7 +132,7 @@ def unknown_key(scene, cand: Candidate) -> str:
 
 
 def score_all(model, idata) -> list[tuple[Candidate, ScoreResult]]:
-    """Score test of every candidate at the posterior median (one augmented model)."""
+    """Score test of every candidate at the fit (``point_estimate``), in one augmented model."""
     from ..compile import Model
 
     scene = model.scene
@@ -148,7 +149,7 @@ def score_all(model, idata) -> list[tuple[Candidate, ScoreResult]]:
         except Exception:  # noqa: BLE001 - a candidate the language cannot express is skipped
             continue
     aug = Model(_load_text(scene, text))
-    values = point_estimate(posterior_draws(model, idata))
+    values = point_estimate(model, idata)
     nuisance = [u.name for u in model.unknowns if u.name not in noise_unknowns(model)]
     tested = [unknown_key(scene, c) for c in usable]
     for c, key in zip(usable, tested):
@@ -201,18 +202,58 @@ def lfo_score(model, idata_cut, cutoff: float) -> float:
     return total
 
 
+FIT_DRAWS = 64  # Laplace draws per chain: enough for PSIS-LOO and 90% intervals; each draw
+# costs one rollout in the posterior pass, the dominant cost of a fit on contact scenes
+
+
 def quick_fit(model, seed: int = 0):
-    """A fast posterior for comparisons: MAP from two prior draws with a Laplace approximation."""
-    return model.infer(backend="map", chains=2, warmup=300, samples=200, seed=seed,
-                       progress=False)
+    """A fast posterior for comparisons: MAP from two prior draws with a Laplace approximation.
+
+    Where the Laplace step fails (a log density with a kink at the mode, e.g. a contact that
+    switches on: the finite-difference Hessian is not positive definite) the posterior is
+    sampled by random-walk Metropolis started at the modes instead, which needs no Hessian and
+    no gradient; ``idata.attrs["fit_note"]`` says so.
+    """
+    try:
+        return model.infer(backend="map", chains=2, warmup=300, samples=FIT_DRAWS, seed=seed,
+                           progress=False)
+    except np.linalg.LinAlgError as err:
+        idata = model.infer(backend="rmh", chains=2, warmup=400, samples=2 * FIT_DRAWS, seed=seed,
+                            progress=False)
+        idata.attrs["fit_note"] = (f"Laplace approximation failed ({err}); posterior sampled by "
+                                   "random-walk Metropolis from the modes")
+        return idata
+
+
+SAME_DIRECTION = 0.9999  # |cos| between score columns above which two candidates act alike
+
+
+def mark_twins(ranked: list[Ranked], directions: dict) -> None:
+    """Set ``same_as`` on every candidate whose score column coincides with that of a better
+    ranked one of the same kind (``directions``: key -> unit column): linear drag on a
+    pendulum's bob *is* joint damping, and no data of this kind can tell them apart."""
+    seen: list[tuple[str, str, np.ndarray]] = []
+    for r in ranked:
+        key = f"{r.effect}@{r.target}"
+        d = directions.get(key)
+        if d is None:
+            continue
+        twin = next((k for kind, k, e in seen if kind == r.kind and abs(float(d @ e)) > SAME_DIRECTION),
+                    None)
+        if twin is not None:
+            r.same_as = twin
+        else:
+            seen.append((r.kind, key, d))
 
 
 def confirm(model, idata, ranked: list[Ranked], cands: dict, k: int, base_rms: float) -> None:
     """Refit the best ``k`` physical candidates with the effect added; fill the comparison fields.
 
-    A refit that fails (a model error, or a fit the inference cannot complete, e.g. a Laplace
-    Hessian that is not positive definite) leaves that candidate unconfirmed with a note; it
-    never ends the whole diagnosis.
+    A candidate that acts exactly like a better ranked one (``same_as``, see ``mark_twins``)
+    would give the same refit, so it is skipped and the next distinct candidate is refitted
+    instead. A refit that fails
+    (a model error, or a fit the inference cannot complete) leaves that candidate unconfirmed
+    with a note; it never ends the whole diagnosis.
     """
     from ..compile import Model
 
@@ -225,7 +266,7 @@ def confirm(model, idata, ranked: list[Ranked], cands: dict, k: int, base_rms: f
         base_lfo = None  # leave-future-out unavailable: judged on ΔELPD and RMS alone
     done = 0
     for r in ranked:
-        if r.kind != "effect" or done >= k:
+        if r.kind != "effect" or done >= k or r.same_as:
             continue
         done += 1
         try:
@@ -244,6 +285,8 @@ def _refit(model, r: Ranked, cand: Candidate, base_loo, base_lfo, cutoff: float,
     text = with_effect(model.scene, cand)
     new = Model(_load_text(model.scene, text))
     fit = quick_fit(new)
+    if fit.attrs.get("fit_note"):
+        r.note = fit.attrs["fit_note"]
     rep = check_model(new, fit)
     new_loo = combined_loo(fit)
     diff = np.asarray(new_loo.loo_i) - np.asarray(base_loo.loo_i)
@@ -305,6 +348,11 @@ def diagnose(model, idata, *, confirm_top: int = 2, alpha: float = 0.05, outdir=
         ranked.append(Ranked(i, c.kind, c.name, ",".join(c.target), s.statistic, s.p_value, s.dof,
                              s.log_p, s.z, s.estimate, note="" if s.information > 0 else
                              "the measurements cannot see this effect"))
+    mark_twins(ranked, {c.key: s.direction for c, s in scored if s.direction is not None})
+    for r in ranked:
+        if r.same_as:
+            r.note = (f"changes the predictions exactly like {r.same_as.replace('@', ' on ')}: "
+                      "these data cannot tell them apart" + (f"; {r.note}" if r.note else ""))
     n_tests = max(len(ranked), 1)
     significant = [r for r in ranked if r.p_value < alpha / n_tests]
     winner = None
@@ -326,6 +374,10 @@ def diagnose(model, idata, *, confirm_top: int = 2, alpha: float = 0.05, outdir=
         rivals = [r for r in ranked if r is not winner and r.confirmed
                   and winner.delta_elpd - r.delta_elpd < ELPD_TIE
                   and abs((winner.delta_lfo or 0.0) - (r.delta_lfo or 0.0)) < ELPD_TIE]
+        twins = [r for r in ranked if r.same_as == f"{winner.effect}@{winner.target}"]
+        if twins:
+            verdict += ("; on these data it acts exactly like " +
+                        ", ".join(f"{r.effect} on {r.target}" for r in twins))
         if rivals:
             verdict += ("; these data barely tell it from " +
                         ", ".join(f"{r.effect} on {r.target}" for r in rivals) +

@@ -4,12 +4,13 @@ An ``ObservableFit`` is what the inference stage hands over for one measured qua
 turns it into the arrays every later test works on: r = (measured - central prediction) / noise,
 with noise the posterior-mean noise scale, and the predictive band from the draws plus noise.
 
-The central prediction is the model's trajectory at the posterior median of the unknowns
-(``ObservableFit.point``) when given, else the mean over draws. The plug-in is the principled
-choice for judging a *model*: it is a trajectory the model can actually produce (the mean of
-draws that bounce at slightly different times is not: it smears every bounce into a ramp), it
-is robust to the odd wild draw of an approximate posterior, and it is the very point at which
-``diagnose`` linearises its score tests. The draws still give the predictive band.
+The central prediction is the model's trajectory at its fit, the most likely posterior draw
+(``ObservableFit.point``, see ``workflow.point_estimate``), when given, else the mean over
+draws. The plug-in is the principled choice for judging a *model*: it is a trajectory the
+model can actually produce (the mean of draws that bounce at slightly different times is not:
+it smears every bounce), a few wild draws of an approximate posterior cannot move it, and it
+is the very point at which ``diagnose`` linearises its score tests. The draws still give the
+predictive band.
 """
 from __future__ import annotations
 
@@ -30,9 +31,9 @@ class ObservableFit:
     mask: np.ndarray          # (N, D) bool, True where measured
     predicted: np.ndarray     # (S, N, D) posterior draws of the noise-free model prediction
     noise_sigma: np.ndarray   # (S, D) or (S, N, D) posterior draws of the noise scale; broadcastable
-    speed: np.ndarray | None  # (N,) model speed of the observed body/joint (at the posterior median)
+    speed: np.ndarray | None  # (N,) model speed of the observed body/joint (at the fit)
     events: tuple[float, ...]  # times of contacts/impacts detected in the model (may be empty)
-    point: np.ndarray | None = None  # (N, D) prediction at the posterior median of the unknowns
+    point: np.ndarray | None = None  # (N, D) prediction at the fit (the most likely draw)
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,7 @@ absent), so one forward-mode Jacobian gives every score at once.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import jax
 import jax.numpy as jnp
@@ -33,6 +33,9 @@ class ScoreResult:
     information: float  # efficient information (trace), 0 when the data cannot see the effect
     estimate: float | None  # one-step estimate of the strength change from off: I_eff^-1 U (scalar)
     log_p: float = 0.0  # natural log of the p-value (ranks candidates whose p underflows to 0)
+    # unit vector of the projected column (scalar strengths): candidates whose directions
+    # coincide change the predictions alike, so the data cannot tell them apart
+    direction: np.ndarray | None = field(default=None, compare=False, repr=False)
 
 
 def standardized_residuals(model, values, pred=None):
@@ -116,12 +119,13 @@ def score_test(key: str, r: np.ndarray, cols_eff: np.ndarray, sign: int = 0) -> 
         i = float(info[0, 0])
         z = float(U[0]) / np.sqrt(i)
         est = float(U[0]) / i
+        direction = cols_eff[:, 0] / np.sqrt(i)
         if sign:
             zs = sign * z
             return ScoreResult(key, zs * zs if zs > 0 else 0.0, zs, 1, float(stats.norm.sf(zs)), i, est,
-                               float(stats.norm.logsf(zs)))
+                               float(stats.norm.logsf(zs)), direction)
         return ScoreResult(key, z * z, None, 1, float(stats.chi2.sf(z * z, 1)), i, est,
-                           chi2_logsf(z * z, 1))
+                           chi2_logsf(z * z, 1), direction)
     w, v = np.linalg.eigh(0.5 * (info + info.T))
     keep = w > 1e-10 * w.max()
     proj = v[:, keep].T @ U

@@ -33,9 +33,31 @@ def posterior_draws(model, idata, max_draws: int = MAX_DRAWS) -> dict[str, np.nd
     return out
 
 
-def point_estimate(draws: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-    """Posterior median of every unknown (component-wise): the values the model is judged at."""
-    return {k: np.median(v, axis=0) for k, v in draws.items()}
+def point_estimate(model, idata) -> dict[str, np.ndarray]:
+    """The posterior draw with the highest log-likelihood: the values the model is judged at.
+
+    The Rao score test is defined at the fit of the model without the candidate (the
+    restricted maximum-likelihood estimate), and a check asks whether the *best* the model can
+    do is consistent with the noise; the most likely of some hundred draws is close to that
+    fit. Unlike a component-wise median it is always a draw the posterior holds, and a few wild
+    draws of an approximate posterior (a Laplace covariance that is nearly singular where the
+    data cannot see a direction) cannot move it.
+    """
+    from ..errors import UsageError
+
+    ll = getattr(idata, "log_likelihood", None)
+    if ll is None or not ll.data_vars:
+        raise UsageError("the posterior has no pointwise log-likelihood",
+                         hint="give the run folder of `physdsl infer` on this same scene")
+    total = sum(np.asarray(ll[v].values).reshape(*ll[v].shape[:2], -1).sum(axis=2)
+                for v in ll.data_vars)
+    total = np.where(np.isfinite(total), total, -np.inf)
+    chain, draw = np.unravel_index(int(np.argmax(total)), total.shape)
+    missing = [u.name for u in model.unknowns if u.name not in idata.posterior]
+    if missing:
+        raise UsageError(f"the posterior has no draws of {', '.join(missing)}",
+                         hint="give the run folder of `physdsl infer` on this same scene")
+    return {u.name: np.asarray(idata.posterior[u.name].values[chain, draw]) for u in model.unknowns}
 
 
 def noise_unknowns(model) -> set[str]:
@@ -60,9 +82,9 @@ def events(model, rollout) -> tuple[float, ...]:
 
 def observable_fits(model, idata, max_draws: int = MAX_DRAWS) -> list[ObservableFit]:
     """One ObservableFit per trajectory observation: posterior-predictive draws (the band) and
-    the prediction at the posterior median of the unknowns (the residuals)."""
+    the prediction at the most likely draw (``point_estimate``: the residuals)."""
     draws = posterior_draws(model, idata, max_draws)
-    values = point_estimate(draws)
+    values = point_estimate(model, idata)
     rollout = model.simulate(values)
     central = {k: np.asarray(v) for k, v in model.predict(values, rollout).items()}
     evs = events(model, rollout)

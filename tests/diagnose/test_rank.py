@@ -100,11 +100,16 @@ def test_joint_damping_ranks_first_on_a_pendulum(fitted):
     friction = _row(d, "joint_friction@hinge")
     assert damping.statistic > friction.statistic + 6.0, d.table()
     assert damping.statistic >= _row(d, "quadratic_drag@bob").statistic, d.table()
+    # the pair is marked as acting alike (one refit serves both); the others are distinct
+    drag = _row(d, "linear_drag@bob")
+    assert {damping.same_as, drag.same_as} == {None, order[0]}, d.table()
+    assert _row(d, "quadratic_drag@bob").same_as is None and friction.same_as is None
 
 
 def test_a_failing_refit_leaves_the_candidate_unconfirmed(quadratic, monkeypatch):
     """A refit the inference cannot finish (here: a Laplace Hessian that is not positive
-    definite) is noted on its row; the diagnosis goes on."""
+    definite) is noted on its row; the diagnosis goes on. A candidate acting exactly like a
+    better ranked one is not refitted."""
     import copy
 
     from physdsl.diagnose import rank
@@ -115,10 +120,12 @@ def test_a_failing_refit_leaves_the_candidate_unconfirmed(quadratic, monkeypatch
     monkeypatch.setattr(rank, "quick_fit", failing_fit)
     d = quadratic.diagnosis
     rows = copy.deepcopy(d.ranking)
+    physical = [r for r in rows if r.kind == "effect"]
+    physical[1].same_as = f"{physical[0].effect}@{physical[0].target}"  # acts like the first
     cands = {c.key: c for c in rank.physics_candidates(quadratic.model.scene)}
     rank.confirm(quadratic.model, quadratic.idata, rows, cands, 2, d.rms_sigma)
     tried = [r for r in rows if r.confirmed is not None]
-    assert len(tried) == 2 and all(r.kind == "effect" for r in tried)
+    assert tried == [physical[0], physical[2]]  # the twin is skipped, the next one refitted
     for r in tried:
         assert r.confirmed is False and r.note.startswith("refit failed: Matrix is not positive")
 
