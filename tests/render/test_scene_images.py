@@ -124,3 +124,47 @@ def test_launch_recovered_from_frames_alone(toss):
     assert abs(v0 - TRUTH["v0"]) < 0.05, v0
     # the Laplace spread covers the truth
     assert abs(h0 - TRUTH["h0"]) < 4 * float(post["h0"].std()) + 1e-3
+
+
+def _trajectory_only_sd(times, sigma, prior_sd):
+    """Posterior sd of (h0, vx, v0) from ball positions alone: z = h0 + v0 t - ..., x = x0 +
+    vx t are linear in the unknowns, so the Gaussian posterior is exact."""
+    t = np.asarray(times)
+    info = np.zeros((3, 3))
+    info[np.ix_([0, 2], [0, 2])] = np.stack([np.ones_like(t), t]) @ np.stack(
+        [np.ones_like(t), t]).T / sigma**2  # z: h0, v0
+    info[1, 1] = (t**2).sum() / sigma**2  # x: vx
+    info += np.diag(1 / np.asarray(prior_sd) ** 2)
+    return np.sqrt(np.diag(np.linalg.inv(info)))
+
+
+@pytest.mark.slow  # MAP fit through rollout and renderer (about a minute on 2 cores)
+def test_frames_plus_a_partial_trajectory(toss):
+    """Frames over 0.5 s and the ball's measured positions over its first 0.1 s only: the fit
+    recovers release height and launch velocity, more sharply than the positions alone."""
+    folder, _, model, rollout, _ = toss
+    ball = model.simulator.body_names.index("ball")
+    grid = np.asarray(model.simulator.times)
+    keep = grid <= 0.1 + 1e-9
+    rng = np.random.default_rng(0)
+    xyz = np.asarray(rollout.body_pos)[keep, ball] + rng.normal(0, 0.005, (keep.sum(), 3))
+    lines = ["t,body,x,y,z"] + [f"{t:.3f},ball,{x:.5f},{y:.5f},{z:.5f}"
+                                for t, (x, y, z) in zip(grid[keep], xyz)]
+    (folder / "start.csv").write_text("\n".join(lines) + "\n")
+    params = ("param h0 ~ normal(1.0 m, 0.2 m)\n  param vx ~ normal(1.0 m/s, 1 m/s)\n"
+              "  param v0 ~ normal(1.5 m/s, 1 m/s)")
+    observe = ('observe cam.image from "frames/*.png" at 10 Hz { noise: 0.05 }\n'
+               '  observe ball.position from "start.csv" where body == "ball" { noise: 5 mm }')
+    text = TOSS.format(duration=0.5, params=params, w=32, h=32, observe=observe)
+    scene = load(text.replace("velocity: (1.5, 0, v0)", "velocity: (vx, 0, v0)"), folder)
+    fit = Model(scene)
+    assert len(fit.observed) == 1 and len(fit.images) == 1
+    post = fit.infer(backend="map", chains=1, samples=400, progress=False).posterior
+    mean = np.array([float(post[k].mean()) for k in ("h0", "vx", "v0")])
+    sd = np.array([float(post[k].std()) for k in ("h0", "vx", "v0")])
+    truth = np.array([TRUTH["h0"], 1.5, TRUTH["v0"]])
+    assert np.all(np.abs(mean - truth) < np.array([0.005, 0.05, 0.05])), mean
+    assert np.all(np.abs(mean - truth) < 4 * sd + 1e-3), (mean, sd)
+    alone = _trajectory_only_sd(grid[keep], 0.005, [0.2, 1.0, 1.0])
+    # the frames add what 0.1 s of positions cannot: the launch velocity
+    assert sd[2] < 0.7 * alone[2] and sd[1] < 0.7 * alone[1], (sd, alone)
