@@ -7,14 +7,17 @@ Euler) with the same priors and noise, so both log densities agree to rounding
 (``logdensity_max_abs_diff``). Prints ``name: value`` lines:
 
 - ``compile_s``: from the ``.phys`` text to the first gradient of the log density;
+  ``compile_s_hand``: the hand-written log density to its first gradient; ``compile_ratio``;
 - ``grad_ms_physdsl``, ``grad_ms_hand``, ``grad_time_ratio`` (compiled over hand-written):
   one jitted value-and-gradient call, median of repeats;
 - ``ess_per_s_physdsl`` (``physdsl infer --backend nuts``, second run: compiled stages are
-  cached, so this is initialisation + warmup + sampling + posterior pass),
+  cached, so this is initialisation + warmup + sampling + posterior pass + InferenceData),
   ``ess_per_s_blackjax_hand`` (blackjax NUTS with window adaptation on the hand-written
   density, one jitted vmapped run, after compile), ``ess_per_s_numpyro`` (numpyro NUTS on the
   hand-written model, second run); ESS is arviz's bulk ESS, minimum over parameters;
 - ``ess_per_s_ratio`` (physdsl over hand-written blackjax), ``ess_per_s_ratio_vs_numpyro``.
+
+All three run 4 chains, 500 warmup and 1000 draws (the issue's protocol).
 
 Run: .venv/bin/python benchmarks/inference.py   (about 3-5 minutes on 2 loaded cores)
 """
@@ -36,7 +39,7 @@ import physdsl  # noqa: E402,F401 - float64
 from tests.infer.conftest import (PROJECTILE_TIMES, PROJECTILE_TRUTH, projectile_text,  # noqa: E402
                                   simulated_scene)
 
-CHAINS, WARMUP, SAMPLES = 2, 300, 300
+CHAINS, WARMUP, SAMPLES = 4, 500, 1000
 DT, STEPS, MASS, G = 0.01, 50, 0.2, np.array([0.0, 0.0, -9.81])
 X0, NOISE = np.array([0.0, 0.0, 1.0]), 0.01
 
@@ -84,7 +87,8 @@ def min_ess(draws: np.ndarray) -> float:
 
 
 def blackjax_hand(logdensity, key, x0):
-    """Window adaptation + NUTS, vmapped over chains, all in one jitted function: (draws, seconds)."""
+    """Window adaptation + NUTS, vmapped over chains, all in one jitted function:
+    (draws, wall seconds, CPU seconds) of the second, compiled run."""
     import blackjax
 
     def chain(k, x):
@@ -98,13 +102,14 @@ def blackjax_hand(logdensity, key, x0):
     run = jax.jit(jax.vmap(chain))
     keys = jax.random.split(key, CHAINS)
     jax.block_until_ready(run(keys, x0))  # compile
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     draws = jax.block_until_ready(run(jax.random.split(jax.random.fold_in(key, 1), CHAINS), x0))
-    return np.asarray(draws), time.perf_counter() - t0
+    return np.asarray(draws), time.perf_counter() - t0, time.process_time() - c0
 
 
 def numpyro_hand(measured, key):
-    """numpyro NUTS on the hand-written model (vectorised chains): (draws, seconds of 2nd run)."""
+    """numpyro NUTS on the hand-written model (vectorised chains): (draws, wall and CPU
+    seconds of the second run)."""
     import numpyro
     import numpyro.distributions as dist
     from numpyro.infer import MCMC, NUTS
@@ -119,11 +124,11 @@ def numpyro_hand(measured, key):
     mcmc = MCMC(NUTS(model), num_warmup=WARMUP, num_samples=SAMPLES, num_chains=CHAINS,
                 chain_method="vectorized", progress_bar=False)
     mcmc.run(key)  # compile
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     mcmc.run(jax.random.fold_in(key, 1))
-    seconds = time.perf_counter() - t0
+    seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
     s = mcmc.get_samples(group_by_chain=True)
-    return np.concatenate([np.asarray(s["v0"]), np.asarray(s["b"])[..., None]], axis=2), seconds
+    return np.concatenate([np.asarray(s["v0"]), np.asarray(s["b"])[..., None]], axis=2), seconds, cpu
 
 
 def main() -> None:
@@ -141,10 +146,16 @@ def main() -> None:
     problem, positions = make_problem(model, jax.random.PRNGKey(0), CHAINS)
     vg = value_and_grad_fn(problem)
     jax.block_until_ready(vg(positions[0]))
-    print(f"compile_s: {time.perf_counter() - t0:.2f}")
+    compile_s = time.perf_counter() - t0
+    print(f"compile_s: {compile_s:.2f}")
 
+    t0 = time.perf_counter()
     hand = hand_logdensity(jnp.asarray(measured))
     hand_vg = jax.jit(jax.value_and_grad(hand))
+    jax.block_until_ready(hand_vg(positions[0]))
+    compile_hand = time.perf_counter() - t0
+    print(f"compile_s_hand: {compile_hand:.2f}")
+    print(f"compile_ratio: {compile_s / compile_hand:.1f}")
     # the flat vector of physdsl is ravel({name: value}) in sorted order: velocity, then drag
     names = sorted(model.unknown_names)
     assert names == ["ball.velocity", "linear_drag@ball.coefficient"], names
@@ -165,24 +176,29 @@ def main() -> None:
     t0 = time.perf_counter()
     model.infer(seed=0, **settings)
     print(f"physdsl_first_run_s: {time.perf_counter() - t0:.2f}")
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     idata = model.infer(seed=1, **settings)
     t_phys = time.perf_counter() - t0
+    cpu_phys = time.process_time() - c0
     post = idata.posterior
     phys_draws = np.concatenate([post["ball.velocity"].values,
                                  post["linear_drag@ball.coefficient"].values[..., None]], axis=2)
     ess_phys = min_ess(phys_draws) / t_phys
     print(f"physdsl_run_s: {t_phys:.2f}")
+    print(f"physdsl_run_cpu_s: {cpu_phys:.2f}")
     print(f"ess_per_s_physdsl: {ess_phys:.2f}")
 
-    bj_draws, t_bj = blackjax_hand(hand, jax.random.PRNGKey(2), jnp.asarray(np.stack(xs[:CHAINS])))
+    bj_draws, t_bj, cpu_bj = blackjax_hand(hand, jax.random.PRNGKey(2),
+                                           jnp.asarray(np.stack(xs[:CHAINS])))
     ess_bj = min_ess(bj_draws) / t_bj
     print(f"blackjax_hand_run_s: {t_bj:.2f}")
+    print(f"blackjax_hand_run_cpu_s: {cpu_bj:.2f}")
     print(f"ess_per_s_blackjax_hand: {ess_bj:.2f}")
 
-    np_draws, t_np = numpyro_hand(jnp.asarray(measured), jax.random.PRNGKey(3))
+    np_draws, t_np, cpu_np = numpyro_hand(jnp.asarray(measured), jax.random.PRNGKey(3))
     ess_np = min_ess(np_draws) / t_np
     print(f"numpyro_run_s: {t_np:.2f}")
+    print(f"numpyro_run_cpu_s: {cpu_np:.2f}")
     print(f"ess_per_s_numpyro: {ess_np:.2f}")
 
     print(f"posterior_mean_drag_physdsl: {float(phys_draws[..., 3].mean()):.4f}")
@@ -190,6 +206,10 @@ def main() -> None:
     print(f"posterior_mean_drag_numpyro: {float(np_draws[..., 3].mean()):.4f}")
     print(f"ess_per_s_ratio: {ess_phys / ess_bj:.3f}")
     print(f"ess_per_s_ratio_vs_numpyro: {ess_phys / ess_np:.3f}")
+    # the same ratios per CPU second (less sensitive to other jobs on a shared machine)
+    ess = {k: min_ess(d) for k, d in (("phys", phys_draws), ("bj", bj_draws), ("np", np_draws))}
+    print(f"ess_per_cpu_s_ratio: {ess['phys'] / cpu_phys / (ess['bj'] / cpu_bj):.3f}")
+    print(f"ess_per_cpu_s_ratio_vs_numpyro: {ess['phys'] / cpu_phys / (ess['np'] / cpu_np):.3f}")
 
 
 if __name__ == "__main__":

@@ -5,11 +5,18 @@ distributions with their supports and transforms), the deterministic rollout of 
 engine, a deterministic ``pred:<observation>`` site per observable (the noise-free
 prediction at the data's times), and one observed site ``obs:<observation>`` per observation whose value is the
 residual (measured - predicted, in the quantity's geometry) under the noise model.
+
+The measurements are an argument of the program (``Model.data``: measured values, masks and
+interpolation weights), not constants in it, so Models of one scene structure with other
+data or another ``until`` share one simulator and one set of compiled functions
+(``Model.compiled``, keyed by ``structure_key``).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from functools import cached_property
+import dataclasses
+import hashlib
+import weakref
+from dataclasses import dataclass
 from pathlib import Path
 
 import jax
@@ -90,16 +97,90 @@ class ObservedTrajectory:
     measured: np.ndarray  # (N, D), missing cells filled with harmless values
     mask: np.ndarray  # (N, K) residual mask
 
+    def data(self) -> dict:
+        """The arrays the compiled program takes for this observation (see ``Model.data``)."""
+        return {"measured": self.measured, "mask": self.mask, "lo": self.interp.lo,
+                "hi": self.interp.hi, "w": self.interp.w}
+
+
+def structure_key(scene: Scene) -> str:
+    """Hash of everything in ``scene`` that its compiled functions depend on.
+
+    Trajectory measurements enter as arguments, so only their shapes count (values, masks,
+    times, file names and source positions do not); everything else (bodies, effects and
+    their tables, priors, noise models, image frames, the simulated duration) is hashed.
+    """
+    h = hashlib.sha256()
+    _hash_walk(h, dataclasses.replace(
+        scene, path=None, source="",
+        observations=tuple(_structure_of(o) for o in scene.observations)))
+    h.update(repr(scene.duration).encode())
+    return h.hexdigest()
+
+
+def _structure_of(obs: Observation):
+    if obs.quantity not in trajectory.QUANTITIES:
+        return dataclasses.replace(obs, file=Path(), span=None)
+    return dataclasses.replace(obs, file=Path(), span=None, times=np.shape(obs.times),
+                               values=np.shape(obs.values), mask=np.shape(obs.mask))
+
+
+def _hash_walk(h, x) -> None:
+    if dataclasses.is_dataclass(x) and not isinstance(x, type):
+        h.update(f"<{type(x).__qualname__}".encode())
+        for f in dataclasses.fields(x):
+            if f.name != "span":
+                h.update(f.name.encode())
+                _hash_walk(h, getattr(x, f.name))
+        h.update(b">")
+    elif isinstance(x, dict) or hasattr(x, "items") and hasattr(x, "keys"):
+        h.update(b"{")
+        for k in sorted(x.keys(), key=repr):
+            _hash_walk(h, k)
+            _hash_walk(h, x[k])
+        h.update(b"}")
+    elif isinstance(x, (tuple, list)):
+        h.update(b"(")
+        for v in x:
+            _hash_walk(h, v)
+        h.update(b")")
+    elif isinstance(x, np.ndarray):
+        h.update(f"a{x.shape}{x.dtype}".encode())
+        h.update(np.ascontiguousarray(x).tobytes())
+    else:
+        h.update(f"{type(x).__name__}:{x!r};".encode())
+
+
+class Compiled:
+    """What Models of one scene structure share: the simulator and a cache of compiled functions.
+
+    ``cache`` maps a name (e.g. a backend's transition) to a jitted function whose arguments
+    include the data, so it serves every Model of the structure.
+    """
+
+    def __init__(self, scene: Scene):
+        from .physics import build_simulator
+
+        self.simulator = build_simulator(scene)
+        self.cache: dict = {}
+
+
+# structure key -> Compiled, alive while some Model holds it
+_COMPILED: "weakref.WeakValueDictionary[str, Compiled]" = weakref.WeakValueDictionary()
+
 
 class Model:
     """A compiled scene: simulate, predict, the numpyro program, and inference entry points."""
 
     def __init__(self, scene: Scene, until: float | None = None):
-        from .physics import build_simulator
-
         self.scene = scene
         self.until = until  # fit only measurements up to this time (leave-future-out)
-        self.simulator = build_simulator(scene)
+        key = structure_key(scene)
+        compiled = _COMPILED.get(key)
+        if compiled is None:
+            compiled = _COMPILED[key] = Compiled(scene)
+        self.compiled = compiled
+        self.simulator = compiled.simulator
         self.unknowns = tuple(dependency_order(scene.unknowns))
         self.observed = tuple(self._prepare(o) for o in scene.observations
                               if o.quantity in trajectory.QUANTITIES)
@@ -118,6 +199,11 @@ class Model:
         return ObservedTrajectory(obs, interp, measured, mask)
 
     @property
+    def data(self) -> dict:
+        """The measurements as the program's argument: name -> {measured, mask, lo, hi, w}."""
+        return {o.obs.name: o.data() for o in self.observed}
+
+    @property
     def unknown_names(self) -> tuple[str, ...]:
         return tuple(u.name for u in self.unknowns)
 
@@ -125,10 +211,11 @@ class Model:
         """Rollout of the scene for the unknowns' ``values`` (name -> array)."""
         return self.simulator.simulate(values)
 
-    def predict(self, values, rollout=None):
+    def predict(self, values, rollout=None, data=None):
         """Noise-free predictions of every trajectory observation: name -> (N, D)."""
         rollout = self.simulate(values) if rollout is None else rollout
-        return {o.obs.name: trajectory.predict(rollout, self.simulator, o.obs, o.interp)
+        data = self.data if data is None else data
+        return {o.obs.name: trajectory.predict(rollout, self.simulator, o.obs, _interp(data[o.obs.name]))
                 for o in self.observed}
 
     def noise_scale(self, obs: Observation, values):
@@ -143,6 +230,22 @@ class Model:
             return dist.StudentT(df, loc, scale)
         return dist.Normal(loc, scale)
 
+    def pointwise_log_likelihood(self, values, preds, data=None) -> dict:
+        """Log-likelihood per measurement time (axes summed) given predictions: name -> (N,)."""
+        data = self.data if data is None else data
+        out = {}
+        for o in self.observed:
+            d = data[o.obs.name]
+            res = self._residual(o.obs, preds[o.obs.name], d)
+            lp = self.noise_distribution(o.obs, values, jnp.zeros_like(res)).log_prob(res)
+            out[o.obs.name] = jnp.sum(jnp.where(d["mask"], lp, 0.0), axis=-1)
+        return out
+
+    @staticmethod
+    def _residual(obs: Observation, pred, d):
+        res = trajectory.residual(obs.quantity, pred, jnp.asarray(d["measured"]))
+        return jnp.where(d["mask"], res, 0.0)
+
     # -- the probabilistic program --------------------------------------------------------
     def prior_values(self):
         """Sample every unknown from its prior inside a numpyro trace; returns name -> value."""
@@ -151,17 +254,22 @@ class Model:
             values[u.name] = numpyro.sample(u.name, build_distribution(u.prior, values, u.shape))
         return values
 
-    def numpyro_model(self):
-        """The generative program: priors, rollout, predictions, noisy observations."""
+    def numpyro_model(self, data=None):
+        """The generative program: priors, rollout, predictions, noisy observations.
+
+        ``data`` (default ``self.data``) holds the measurements; any Model of the same
+        structure may pass its own.
+        """
+        data = self.data if data is None else data
         values = self.prior_values()
         rollout = self.simulate(values)
         for o in self.observed:
-            pred = trajectory.predict(rollout, self.simulator, o.obs, o.interp)
+            d = data[o.obs.name]
+            pred = trajectory.predict(rollout, self.simulator, o.obs, _interp(d))
             numpyro.deterministic(PRED_PREFIX + o.obs.name, pred)
-            res = trajectory.residual(o.obs.quantity, pred, jnp.asarray(o.measured))
-            res = jnp.where(o.mask, res, 0.0)
+            res = self._residual(o.obs, pred, d)
             noise = self.noise_distribution(o.obs, values, jnp.zeros_like(res))
-            numpyro.sample(OBS_PREFIX + o.obs.name, noise.mask(jnp.asarray(o.mask)), obs=res)
+            numpyro.sample(OBS_PREFIX + o.obs.name, noise.mask(jnp.asarray(d["mask"])), obs=res)
         for obs in self.images:
             numpyro.factor(OBS_PREFIX + obs.name, self.image_log_likelihood(obs, rollout, values))
 
@@ -171,23 +279,32 @@ class Model:
 
         return scene_image_log_likelihood(self, obs, rollout, values)
 
-    def log_likelihood(self, values):
+    def log_likelihood(self, values, data=None):
         """Total log-likelihood of all trajectory measurements at ``values`` (scalar)."""
-        pred = self.predict(values)
-        total = 0.0
-        for o in self.observed:
-            res = trajectory.residual(o.obs.quantity, pred[o.obs.name], jnp.asarray(o.measured))
-            res = jnp.where(o.mask, res, 0.0)
-            lp = self.noise_distribution(o.obs, values, jnp.zeros_like(res)).log_prob(res)
-            total = total + jnp.sum(jnp.where(o.mask, lp, 0.0))
-        return total
+        ll = self.pointwise_log_likelihood(values, self.predict(values, data=data), data)
+        return sum((jnp.sum(v) for v in ll.values()), jnp.zeros(()))
 
     def sample_prior(self, key, n: int) -> dict[str, np.ndarray]:
         """``n`` joint draws of every unknown from the prior: name -> (n, *shape)."""
-        def one(k):
-            with numpyro.handlers.seed(rng_seed=k):
-                return self.prior_values()
-        return {k: np.asarray(v) for k, v in jax.jit(jax.vmap(one))(jax.random.split(key, n)).items()}
+        def build():
+            def one(k):
+                with numpyro.handlers.seed(rng_seed=k):
+                    return self.prior_values()
+            return jax.jit(jax.vmap(one))
+
+        fn = self.cached("sample-prior", build)
+        return {k: np.asarray(v) for k, v in fn(jax.random.split(key, n)).items()}
+
+    def cached(self, key, build):
+        """``self.compiled.cache[key]``, built once per scene structure (see ``Compiled``).
+
+        Whatever ``build`` returns is shared by every Model of this structure, so it must take
+        the data as an argument rather than read this Model's.
+        """
+        cache = self.compiled.cache
+        if key not in cache:
+            cache[key] = build()
+        return cache[key]
 
     # -- workflow entry points ----------------------------------------------------------
     def infer(self, **kwargs):
@@ -210,6 +327,10 @@ class Model:
         from .export import export
 
         return export(self.scene.path, idata, **kwargs)
+
+
+def _interp(d) -> trajectory.Interpolation:
+    return trajectory.Interpolation(d["lo"], d["hi"], d["w"])
 
 
 def compile_scene(scene: Scene) -> Model:

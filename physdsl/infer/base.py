@@ -1,10 +1,12 @@
 """The one shape every inference backend takes, and the registry of backends by name.
 
-A backend works on a log density over a flat unconstrained vector (from numpyro's
-``initialize_model``), blackjax-style: ``warmup`` tunes and returns per-chain states and
+A backend works on a log density over a flat unconstrained vector and the measurements
+(``Problem.logdensity(x, data)``, numpyro's potential), blackjax-style: ``warmup`` tunes and returns per-chain states and
 parameters; ``sample`` advances the chains by ``n`` draws. Both are pure functions of their
 inputs (keys included), so running in blocks and resuming from a checkpoint gives the same
-draws as one uninterrupted run. A new backend is one module with ``@register_backend``.
+draws as one uninterrupted run. Compiled stages take ``problem.data`` as an argument and live
+in ``problem.cache``, shared by every Model of one scene structure, so a new dataset reuses
+them. A new backend is one module with ``@register_backend``.
 """
 from __future__ import annotations
 
@@ -13,6 +15,7 @@ from typing import Any, Callable, NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from ..errors import UsageError
 
@@ -35,13 +38,18 @@ class Settings:
 
 
 class Problem(NamedTuple):
-    """A log density over flat unconstrained vectors and how to map draws back."""
+    """A log density over flat unconstrained vectors and how to map draws back.
 
-    logdensity: Callable[[jax.Array], jax.Array]  # flat -> log p (finite or -inf)
-    to_constrained: Callable[[jax.Array], dict]  # flat -> {site: constrained value}
+    ``logdensity`` and ``to_constrained`` are pure in ``(x, data)`` and shared by the Models of
+    one scene structure; ``data`` is this Model's measurements (``Model.data``, as arrays).
+    """
+
+    logdensity: Callable[[jax.Array, Any], jax.Array]  # (flat, data) -> log p (finite or -inf)
+    to_constrained: Callable[[jax.Array, Any], dict]  # (flat, data) -> {site: constrained value}
     dim: int
     model: Any  # the compiled Model (for backends that need the program itself)
-    cache: dict  # compiled functions shared by stages (e.g. the jitted value and gradient)
+    data: Any  # the measurements: the second argument of logdensity / to_constrained
+    cache: dict  # compiled functions (taking data as an argument), shared by the structure
 
 
 class Backend:
@@ -82,12 +90,20 @@ def cached(problem: Problem, key, build: Callable):
 
 
 def value_and_grad_fn(problem: Problem):
-    """The jitted (log density, gradient) of ``problem``, compiled once and cached on it."""
-    return cached(problem, "vg", lambda: jax.jit(jax.value_and_grad(problem.logdensity)))
+    """x -> (log density, gradient) at ``problem``'s data; compiled once per scene structure."""
+    vg = cached(problem, "vg", lambda: jax.jit(jax.value_and_grad(problem.logdensity)))
+    data = problem.data
+    return lambda x: vg(x, data)
+
+
+def bind(problem: Problem, data):
+    """The log density of ``problem`` at ``data`` as a function of x alone (for use in traces)."""
+    return lambda x: problem.logdensity(x, data)
 
 
 def safe_logdensity(fn):
-    """Wrap a log density so NaN/inf values or gradients become -inf with zero gradient.
+    """Wrap a log density ``fn(x, data)`` so NaN/inf values or gradients become -inf with
+    zero gradient (no gradient flows to ``data``).
 
     A rollout that blows up for some parameter values then is a rejected proposal, not a
     crash, and no NaN leaks into the sampler's state through the gradient. Without
@@ -95,19 +111,26 @@ def safe_logdensity(fn):
     """
 
     @jax.custom_vjp
-    def f(x):
-        v = fn(x)
+    def f(x, data):
+        v = fn(x, data)
         return jnp.where(jnp.isfinite(v), v, -jnp.inf)
 
-    def fwd(x):
-        v, g = _clean(*jax.value_and_grad(fn)(x))
-        return v, g
+    def fwd(x, data):
+        v, g = _clean(*jax.value_and_grad(fn)(x, data))
+        return v, (g, data)
 
-    def bwd(g, ct):
-        return (ct * g,)
+    def bwd(res, ct):
+        g, data = res
+        return ct * g, jax.tree_util.tree_map(_zero_cotangent, data)
 
     f.defvjp(fwd, bwd)
     return f
+
+
+def _zero_cotangent(a):
+    if jnp.issubdtype(a.dtype, jnp.inexact):
+        return jnp.zeros_like(a)
+    return np.zeros(a.shape, dtype=jax.dtypes.float0)
 
 
 def _clean(v, g):

@@ -13,7 +13,6 @@ import numpy as np
 
 from .. import io
 from ..compile import OBS_PREFIX, PRED_PREFIX
-from ..observe import trajectory
 from .base import cached
 
 
@@ -26,14 +25,14 @@ def build_inference_data(model, problem, flat: np.ndarray, stats: dict, settings
     """
     chains, samples, _ = flat.shape
 
-    def one(x):
-        c = problem.to_constrained(x)
+    def one(x, data):
+        c = problem.to_constrained(x, data)
         values = {k: c[k] for k in model.unknown_names}
         preds = {o.obs.name: c[PRED_PREFIX + o.obs.name] for o in model.observed}
-        return c, pointwise_from_predictions(model, values, preds)
+        return c, model.pointwise_log_likelihood(values, preds, data)
 
-    fn = cached(problem, "posterior-pass", lambda: jax.jit(jax.vmap(one)))
-    constrained, loglik = fn(jnp.asarray(flat.reshape(chains * samples, -1)))
+    fn = cached(problem, "posterior-pass", lambda: jax.jit(jax.vmap(one, in_axes=(0, None))))
+    constrained, loglik = fn(jnp.asarray(flat.reshape(chains * samples, -1)), problem.data)
     unknowns = set(model.unknown_names)
     shaped = lambda v: np.asarray(v).reshape(chains, samples, *v.shape[1:])  # noqa: E731
     posterior = {k: shaped(v) for k, v in constrained.items() if k in unknowns}
@@ -61,22 +60,19 @@ def _dims(model, posterior):
     return dims, coords
 
 
-def pointwise_from_predictions(model, values, preds) -> dict:
-    """Log-likelihood per measurement time (axes summed) given predictions: name -> (N,)."""
-    out = {}
-    for o in model.observed:
-        res = trajectory.residual(o.obs.quantity, preds[o.obs.name], jnp.asarray(o.measured))
-        res = jnp.where(o.mask, res, 0.0)
-        lp = model.noise_distribution(o.obs, values, jnp.zeros_like(res)).log_prob(res)
-        out[o.obs.name] = jnp.sum(jnp.where(o.mask, lp, 0.0), axis=-1)
-    return out
-
-
 def pointwise_log_likelihood(model, values: dict) -> dict[str, np.ndarray]:
-    """Log-likelihood per draw and measurement time: name -> (draws, N)."""
-    def one(vals):
-        return pointwise_from_predictions(model, vals, model.predict(vals))
-    return {k: np.asarray(v) for k, v in jax.jit(jax.vmap(one))(values).items()}
+    """Log-likelihood per draw and measurement time: name -> (draws, N).
+
+    Compiled once per scene structure (the data are an argument), e.g. for the
+    leave-future-out scores of several cut-off fits.
+    """
+    def build():
+        def one(vals, data):
+            return model.pointwise_log_likelihood(vals, model.predict(vals, data=data), data)
+        return jax.jit(jax.vmap(one, in_axes=(0, None)))
+
+    fn = model.cached("pointwise-log-likelihood", build)
+    return {k: np.asarray(v) for k, v in fn(values, model.data).items()}
 
 
 def summary_rows(model, idata) -> list[dict]:

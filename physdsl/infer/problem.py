@@ -2,8 +2,9 @@
 
 The unconstrained space is that of the prior program alone (the physics adds only
 deterministic and observed sites), so building it never runs or compiles the rollout. The
-Problem is made once per Model and cached, so every run on one Model (several backends,
-resumed runs, diagnosis refits) shares its compiled functions (``Problem.cache``).
+log density takes the measurements as an argument (``Problem.data``), and its functions
+and every compiled stage (``Problem.cache``) are shared by all Models of one scene
+structure: another dataset or another ``until`` cut-off reuses them without recompiling.
 """
 from __future__ import annotations
 
@@ -37,17 +38,24 @@ def _build_problem(model) -> Problem:
                              "trajectory inference yet",
                              hint="give them a value, or fit shape from images with "
                                   "physdsl.render.inverse (Metropolis-within-Gibbs)")
+    logdensity, to_constrained, dim = model.cached("problem", lambda: _functions(model))
+    data = jax.tree_util.tree_map(jnp.asarray, model.data)
+    return Problem(logdensity, to_constrained, dim, model, data, model.compiled.cache)
+
+
+def _functions(model):
+    """(log density (x, data), to_constrained (x, data), dim) of ``model``'s structure."""
     with numpyro.handlers.seed(rng_seed=0):
         draw = model.prior_values()
     flat, unravel = ravel_pytree(unconstrain_fn(model.prior_values, (), {}, draw))
 
-    def logdensity(x):
-        return -potential_energy(model.numpyro_model, (), {}, unravel(x))
+    def logdensity(x, data):
+        return -potential_energy(model.numpyro_model, (data,), {}, unravel(x))
 
-    def to_constrained(x):
-        return constrain_fn(model.numpyro_model, (), {}, unravel(x), return_deterministic=True)
+    def to_constrained(x, data):
+        return constrain_fn(model.numpyro_model, (data,), {}, unravel(x), return_deterministic=True)
 
-    return Problem(safe_logdensity(logdensity), to_constrained, int(flat.size), model, {})
+    return safe_logdensity(logdensity), to_constrained, int(flat.size)
 
 
 def prior_draws_unconstrained(problem: Problem, key, n: int) -> np.ndarray:

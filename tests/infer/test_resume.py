@@ -8,7 +8,9 @@ import pytest
 from physdsl.errors import UsageError
 from physdsl.infer import get_backend
 
-SETTINGS = dict(backend="nuts", chains=2, warmup=60, samples=90, block=30, seed=11, progress=False)
+# the default block (100) as in the recovery tests, so the compiled block is shared; three
+# blocks of draws (100, 100, 50), the run interrupted in the second
+SETTINGS = dict(backend="nuts", chains=2, warmup=60, samples=250, seed=11, progress=False)
 
 
 def _interrupt_on_block(monkeypatch, backend: str, block: int):

@@ -1,10 +1,11 @@
 """HMC and NUTS from blackjax, tuned by Stan's window adaptation (step size, diagonal mass).
 
-One transition of one chain is jitted once per Problem, with the step size and inverse mass
-matrix as arguments; warmup (window-adaptation updates between transitions) and sampling
-drive that same compiled step from a Python loop, chain by chain. So the physics is compiled
-once per backend (not once for warmup and again per block of draws), and chains are not
-vmapped (a vmapped NUTS builds every chain's tree in lock-step and compiles far slower).
+Warmup and sampling run the same compiled block (``physdsl.infer.blocks``): up to
+``settings.block`` transitions of every chain per call, chains vmapped, with the step size
+and inverse mass matrix in each chain's carry. During warmup each transition also updates the
+window adaptation (blackjax's ``window_adaptation.base``, schedule passed in per block);
+sampling uses the adapted values. One compile serves both stages, every block and every
+Model of the scene's structure.
 """
 from __future__ import annotations
 
@@ -18,14 +19,10 @@ from blackjax.adaptation.window_adaptation import base as window_base
 from blackjax.adaptation.window_adaptation import build_schedule
 from blackjax.mcmc.hmc import HMCState
 
-from ..base import Backend, cached, register_backend, value_and_grad_fn
+from ..base import Backend, bind, register_backend, value_and_grad_fn
+from ..blocks import block_runner, run_blocks
 
 INITIAL_STEP_SIZE = 1.0
-
-
-def chain_keys(key, n: int, chains: int) -> np.ndarray:
-    """Keys for ``n`` transitions of ``chains`` chains: (n, chains, 2), a pure function of ``key``."""
-    return np.asarray(jax.vmap(lambda k: jax.random.split(k, chains))(jax.random.split(key, n)))
 
 
 def initial_states(problem, positions) -> HMCState:
@@ -36,14 +33,15 @@ def initial_states(problem, positions) -> HMCState:
                     jnp.stack([g for _, g in pairs]))
 
 
-def unstack(tree, n: int) -> list:
-    """A pytree with a leading chain axis as a list of ``n`` per-chain pytrees."""
-    return [jax.tree_util.tree_map(lambda a: a[c], tree) for c in range(n)]
+def tree_where(cond, a, b):
+    """``a`` where ``cond`` (a scalar) else ``b``, leaf by leaf."""
+    return jax.tree_util.tree_map(lambda x, y: jnp.where(cond, x, y), a, b)
 
 
-def stack(trees: list):
-    """Inverse of ``unstack``."""
-    return jax.tree_util.tree_map(lambda *a: jnp.stack(a), *trees)
+def _window(target_accept: float):
+    with warnings.catch_warnings():  # base() is blackjax's documented building block
+        warnings.simplefilter("ignore", DeprecationWarning)
+        return window_base(True, target_acceptance_rate=target_accept)
 
 
 class _BlackjaxHMCFamily(Backend):
@@ -52,57 +50,58 @@ class _BlackjaxHMCFamily(Backend):
     def _extra(self, settings) -> dict:
         return {}
 
-    def _step(self, problem, settings):
-        """jit(one transition of one chain): (key, state, step_size, imm) -> (state, info)."""
+    def _runner(self, problem, settings):
+        """The compiled block: carry (state, adaptation state, (step size, inverse mass));
+        shared (stages (block, 2), adapting)."""
         extra = self._extra(settings)
+        _, update, _ = _window(settings.target_accept)
 
-        def build():
-            def one(k, state, step_size, inverse_mass_matrix):
-                return self.algorithm(problem.logdensity, step_size, inverse_mass_matrix,
-                                      **extra).step(k, state)
-            return jax.jit(one)
+        def transition(data, key, carry, shared, i):
+            state, astate, (step_size, imm) = carry
+            stages, adapting = shared
+            step_size = jnp.where(adapting, astate.step_size, step_size)
+            imm = jnp.where(adapting, astate.inverse_mass_matrix, imm)
+            state, info = self.algorithm(bind(problem, data), step_size, imm, **extra).step(key, state)
+            new = update(astate, (stages[i, 0], stages[i, 1]), state.position, info.acceptance_rate)
+            astate = tree_where(adapting, new, astate)
+            return (state, astate, carry[2]), (state.position, _stats(info))
 
-        return cached(problem, (self.name, "step", tuple(sorted(extra.items()))), build)
+        key = (self.name, tuple(sorted(extra.items())), settings.target_accept)
+        return block_runner(problem, key, transition, settings.block)
 
     def warmup(self, problem, positions, key, settings):
-        with warnings.catch_warnings():  # base() is blackjax's documented building block
-            warnings.simplefilter("ignore", DeprecationWarning)
-            init, update, final = window_base(True, target_acceptance_rate=settings.target_accept)
-        adapt = cached(problem, ("window-adaptation", settings.target_accept),
-                       lambda: jax.jit(update))
-        step = self._step(problem, settings)
+        init, _, final = _window(settings.target_accept)
+        run = self._runner(problem, settings)
+        positions = jnp.asarray(positions)
         chains = positions.shape[0]
-        states = unstack(initial_states(problem, positions), chains)
-        astates = [init(s.position, INITIAL_STEP_SIZE) for s in states]
+        astates = jax.vmap(lambda x: init(x, INITIAL_STEP_SIZE))(positions)
+        tuning = (jnp.ones(chains), jnp.ones_like(positions))
+        carries = (initial_states(problem, positions), astates, tuning)
         n = settings.warmup
-        schedule = np.asarray(build_schedule(n)) if n else np.zeros((0, 2), int)
-        keys = chain_keys(key, n, chains) if n else []
-        for i in range(n):
-            stage = (jnp.asarray(schedule[i, 0], jnp.int32), jnp.asarray(schedule[i, 1], bool))
-            for c in range(chains):
-                states[c], info = step(keys[i][c], states[c], astates[c].step_size,
-                                       astates[c].inverse_mass_matrix)
-                astates[c] = adapt(astates[c], stage, states[c].position, info.acceptance_rate)
-        step_size, inverse_mass_matrix = stack([final(a) for a in astates])
+        schedule = np.asarray(build_schedule(n), dtype=np.int32).reshape(n, 2)
+
+        def shared(start, m):
+            stages = np.zeros((settings.block, 2), np.int32)
+            stages[:m] = schedule[start:start + m]
+            return jnp.asarray(stages), jnp.asarray(True)
+
+        (states, astates, _), _ = run_blocks(run, problem, key, carries, n, settings.block, shared)
+        step_size, inverse_mass_matrix = jax.vmap(final)(astates)
         params = {"step_size": step_size, "inverse_mass_matrix": inverse_mass_matrix}
-        return stack(states), params, {"step_size": step_size}
+        return states, params, {"step_size": step_size}
 
     def sample(self, problem, states, params, key, n, settings):
-        step = self._step(problem, settings)
-        chains = np.shape(params["step_size"])[0]
-        states = unstack(HMCState(*states), chains)
-        per_chain = unstack(params, chains)
-        draws, stats = [], []
-        for k in chain_keys(key, n, chains):
-            infos = []
-            for c in range(chains):
-                states[c], info = step(k[c], states[c], per_chain[c]["step_size"],
-                                       per_chain[c]["inverse_mass_matrix"])
-                infos.append(_stats(info))
-            draws.append(np.stack([np.asarray(s.position) for s in states]))
-            stats.append({name: np.stack([np.asarray(i[name]) for i in infos]) for name in infos[0]})
-        return stack(states), np.stack(draws, axis=1), {k: np.stack([s[k] for s in stats], axis=1)
-                                                        for k in stats[0]}
+        init, _, _ = _window(settings.target_accept)
+        run = self._runner(problem, settings)
+        states = HMCState(*map(jnp.asarray, states))
+        step_size = jnp.asarray(params["step_size"])
+        imm = jnp.asarray(params["inverse_mass_matrix"])
+        carries = (states, jax.vmap(lambda x: init(x, INITIAL_STEP_SIZE))(states.position),
+                   (step_size, imm))
+        shared = (jnp.zeros((settings.block, 2), jnp.int32), jnp.asarray(False))
+        (states, _, _), (draws, stats) = run_blocks(run, problem, key, carries, n, settings.block,
+                                                    lambda start, m: shared)
+        return states, draws, stats
 
 
 def _stats(info):

@@ -3,19 +3,20 @@
 Warmup adapts a Gaussian proposal: its shape from the running covariance of the chain
 (adaptive Metropolis, so correlated posteriors mix) and its overall scale by Robbins-Monro
 towards the optimal acceptance rate 0.234 (Roberts & Rosenthal). Needs no gradient (only the
-log density's value is compiled), so it also runs on rollouts that are not differentiable. As for HMC, one transition of one chain (proposal scale as an argument)
-is jitted once per Problem and driven from Python in warmup and sampling alike.
+log density's value is evaluated), so it also runs on rollouts that are not differentiable.
+As for HMC, warmup and sampling run one compiled block of transitions
+(``physdsl.infer.blocks``); a flag says whether the proposal adapts.
 """
 from __future__ import annotations
 
 import blackjax
 import jax
 import jax.numpy as jnp
-import numpy as np
 from blackjax.mcmc.random_walk import RWState
 
-from ..base import Backend, cached, register_backend
-from .hmc import chain_keys, stack, unstack
+from ..base import Backend, bind, register_backend, value_and_grad_fn
+from ..blocks import block_runner, run_blocks
+from .hmc import tree_where
 
 TARGET_ACCEPT = 0.234
 
@@ -39,50 +40,48 @@ def _sigma(log_scale, cov):
     return jnp.exp(log_scale) * 2.38 / jnp.sqrt(d) * jnp.linalg.cholesky(cov + jitter)
 
 
+def _transition(problem):
+    """One step of one chain; carry (state, (log scale, mean, cov), sigma); shared (offset,
+    adapting): the transition's index in warmup is offset + i."""
+    def transition(data, key, carry, shared, i):
+        state, moments, sigma = carry
+        offset, adapting = shared
+        state, info = blackjax.normal_random_walk(bind(problem, data), sigma).step(key, state)
+        *new_moments, new_sigma = _adapt((offset + i).astype(float), *moments, state.position,
+                                         info.acceptance_rate)
+        moments, sigma = tree_where(adapting, (tuple(new_moments), new_sigma), (moments, sigma))
+        out = (state.position, {"acceptance_rate": info.acceptance_rate,
+                                "nonfinite": ~jnp.isfinite(state.logdensity)})
+        return (state, moments, sigma), out
+    return transition
+
+
 @register_backend
 class RMH(Backend):
     name = "rmh"
     uses_gradient = False
 
-    def _step(self, problem):
-        def build():
-            logdensity = problem.logdensity
-
-            def one(k, state, sigma):
-                return blackjax.normal_random_walk(logdensity, sigma).step(k, state)
-            return jax.jit(one)
-        return cached(problem, ("rmh", "step"), build)
+    def _runner(self, problem, settings):
+        return block_runner(problem, "rmh", _transition(problem), settings.block)
 
     def warmup(self, problem, positions, key, settings):
-        chains, dim = positions.shape
-        step = self._step(problem)
-        value = cached(problem, ("rmh", "value"), lambda: jax.jit(problem.logdensity))
-        adapt = cached(problem, ("rmh", "adapt"), lambda: jax.jit(_adapt))
         positions = jnp.asarray(positions)
-        states = [RWState(x, value(x)) for x in positions]
-        moments = [(jnp.zeros(()), x, 0.01 * jnp.eye(dim)) for x in positions]
-        sigmas = [_sigma(m[0], m[2]) for m in moments]
-        n = max(settings.warmup, 1)
-        for i, k in enumerate(chain_keys(key, n, chains)):
-            for c in range(chains):
-                states[c], info = step(k[c], states[c], sigmas[c])
-                *moments[c], sigmas[c] = adapt(jnp.asarray(float(i)), *moments[c],
-                                               states[c].position, info.acceptance_rate)
-        sigma = jnp.stack(sigmas)
-        return stack(states), {"sigma": sigma}, {"proposal_sigma": sigma}
+        chains, dim = positions.shape
+        vg = value_and_grad_fn(problem)  # compiled already for the starts
+        states = RWState(positions, jnp.stack([vg(x)[0] for x in positions]))
+        moments = (jnp.zeros(chains), positions, jnp.broadcast_to(0.01 * jnp.eye(dim), (chains, dim, dim)))
+        carries = (states, moments, jax.vmap(_sigma)(moments[0], moments[2]))
+        (states, _, sigma), _ = run_blocks(
+            self._runner(problem, settings), problem, key, carries, max(settings.warmup, 1),
+            settings.block, lambda start, m: (jnp.asarray(start), jnp.asarray(True)))
+        return states, {"sigma": sigma}, {"proposal_sigma": sigma}
 
     def sample(self, problem, states, params, key, n, settings):
-        step = self._step(problem)
-        chains = np.shape(params["sigma"])[0]
-        states = unstack(RWState(*states), chains)
-        draws, acc, nonfinite = [], [], []
-        for k in chain_keys(key, n, chains):
-            row_acc = []
-            for c in range(chains):
-                states[c], info = step(k[c], states[c], params["sigma"][c])
-                row_acc.append(np.asarray(info.acceptance_rate))
-            draws.append(np.stack([np.asarray(s.position) for s in states]))
-            acc.append(np.stack(row_acc))
-            nonfinite.append(~np.isfinite([float(s.logdensity) for s in states]))
-        return stack(states), np.stack(draws, axis=1), {"acceptance_rate": np.stack(acc, axis=1),
-                                                        "nonfinite": np.stack(nonfinite, axis=1)}
+        states = RWState(*map(jnp.asarray, states))
+        sigma = jnp.asarray(params["sigma"])
+        chains, dim = states.position.shape
+        moments = (jnp.zeros(chains), states.position, jnp.broadcast_to(jnp.eye(dim), (chains, dim, dim)))
+        (states, _, _), (draws, stats) = run_blocks(
+            self._runner(problem, settings), problem, key, (states, moments, sigma), n,
+            settings.block, lambda start, m: (jnp.asarray(0), jnp.asarray(False)))
+        return states, draws, stats
