@@ -1,5 +1,7 @@
 """Gradients of rollouts w.r.t. unknowns match central finite differences (float64, rel < 1e-3);
 simulate is jit/vmap/grad-able and does not recompile for new values."""
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -74,13 +76,30 @@ def loss_fn(sim, weights):
     return loss
 
 
-def check_fd(sim, values, rtol=1e-3, only=None):
-    vals = {k: jnp.asarray(v, float) for k, v in values.items()}
-    rng = np.random.default_rng(0)
-    T, B = len(sim.times), len(sim.body_names)
-    w = (jnp.asarray(rng.normal(size=(T, B, 3))), jnp.asarray(rng.normal(size=(T, B, 3))))
-    loss = jax.jit(loss_fn(sim, w))
-    g = jax.grad(loss)(vals)
+class Compiled:
+    """One simulator with its jitted loss and gradient, shared by the tests of a module so each
+    scene compiles once (compilation dominates these tests' cost)."""
+
+    def __init__(self, s, values):
+        self.sim = build_simulator(s)
+        self.values = {k: jnp.asarray(v, float) for k, v in values.items()}
+        rng = np.random.default_rng(0)
+        T, B = len(self.sim.times), len(self.sim.body_names)
+        w = (jnp.asarray(rng.normal(size=(T, B, 3))), jnp.asarray(rng.normal(size=(T, B, 3))))
+        self.traces = 0  # traces of the loss (each jit trace of loss or grad calls it once)
+
+        def loss(values):
+            self.traces += 1
+            return loss_fn(self.sim, w)(values)
+
+        self.loss = jax.jit(loss)
+        self.grad = jax.jit(jax.grad(loss))
+
+
+def check_fd(c: Compiled, rtol=1e-3, only=None):
+    """Every scalar of every unknown (or of ``only``): gradient vs central finite difference."""
+    vals, loss = c.values, c.loss
+    g = c.grad(vals)
     for name, x in vals.items():
         if only is not None and name not in only:
             continue
@@ -98,38 +117,59 @@ def check_fd(sim, values, rtol=1e-3, only=None):
             assert abs(ad - fd) <= rtol * max(abs(fd), 1e-3), (name, i, ad, fd)
 
 
+def euler(s):
+    """``s`` stepped by semi-implicit Euler: half the compile cost of RK4 for the fast suite (the
+    slow suite checks the RK4 scenes with every unknown)."""
+    return dataclasses.replace(s, world=dataclasses.replace(s.world, integrator="semi_implicit_euler"))
+
+
+@pytest.fixture(scope="module")
+def free_ball():
+    return Compiled(euler(free_ball_scene()), FREE_VALUES)
+
+
+@pytest.fixture(scope="module")
+def arm():
+    return Compiled(euler(arm_scene()), ARM_VALUES)
+
+
 FAST_FREE = ("m", "r", "v0", "cq", "wind", "k", "u")
 FAST_ARM = ("L", "I1", "th0", "bj", "Tf", "tau")
 
 
-def test_free_ball_gradients_match_finite_differences():
-    check_fd(build_simulator(free_ball_scene()), FREE_VALUES, only=FAST_FREE)
+def test_free_ball_gradients_match_finite_differences(free_ball):
+    check_fd(free_ball, only=FAST_FREE)
 
 
-def test_arm_gradients_match_finite_differences():
-    check_fd(build_simulator(arm_scene()), ARM_VALUES, only=FAST_ARM)
+def test_arm_gradients_match_finite_differences(arm):
+    check_fd(arm, only=FAST_ARM)
 
 
 @pytest.mark.slow
 def test_every_unknown_gradient_matches_finite_differences():
-    check_fd(build_simulator(free_ball_scene()), FREE_VALUES)
-    check_fd(build_simulator(arm_scene()), ARM_VALUES)
+    check_fd(Compiled(free_ball_scene(), FREE_VALUES))
+    check_fd(Compiled(arm_scene(), ARM_VALUES))
 
 
-def test_jit_vmap_grad_and_no_recompile():
-    sim = build_simulator(arm_scene())
-    vals = {k: jnp.asarray(v, float) for k, v in ARM_VALUES.items()}
+def test_jit_vmap_grad_and_no_recompile(arm):
+    sim, vals = arm.sim, arm.values
     a = sim.simulate(vals)
+    traces = sim.trace_count
     b = sim.simulate({**vals, "L": jnp.asarray(0.5)})
-    assert sim.trace_count == 1  # new values, same compiled function
+    assert sim.trace_count == traces  # new values, same compiled function
     assert not np.allclose(a.body_pos, b.body_pos)
     Ls = jnp.array([0.3, 0.4, 0.5])
     batch = jax.vmap(lambda L: sim.simulate({**vals, "L": L}))(Ls)
     assert batch.body_pos.shape == (3,) + a.body_pos.shape
     np.testing.assert_allclose(batch.body_pos[1], a.body_pos, rtol=1e-12, atol=1e-14)
     assert a.t.shape == (len(sim.times),) and a.joint_pos.shape == (len(sim.times), 2)
-    g = jax.grad(lambda L: sim.simulate({**vals, "L": L}).body_pos[-1, 1, 0])(jnp.asarray(0.4))
-    assert np.isfinite(float(g)) and float(g) != 0.0
+    # the jitted gradient (shared with the FD test) at new values: not traced again
+    g1 = arm.grad(vals)
+    traces = arm.traces
+    g2 = arm.grad({**vals, "L": jnp.asarray(0.45, float)})
+    assert arm.traces == traces
+    assert all(np.all(np.isfinite(np.asarray(x))) for x in jax.tree.leaves((g1, g2)))
+    assert float(g1["L"]) != float(g2["L"]) and float(g1["L"]) != 0.0
 
 
 @pytest.mark.slow
