@@ -1,4 +1,6 @@
 """Every effect at its strength's off value is exactly absent, with finite, correct gradients."""
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -6,9 +8,11 @@ import pytest
 
 import physdsl  # noqa: F401
 from physdsl.errors import ModelError
+from physdsl.expr import Ref
 from physdsl.physics import build_model, build_simulator
-from physdsl.physics.effects import EFFECTS
 from physdsl.physics.dynamics import generalized_forces
+from physdsl.physics.effects import EFFECTS, Ctx
+from physdsl.physics.integrate import total_gravity
 from physdsl.physics.kinematics import forward_kinematics
 from physdsl.physics.params import evaluate_params
 from physdsl.scene import Joint
@@ -58,70 +62,85 @@ def use_for(name):
     return effect(eff, target if isinstance(target, tuple) else target, tables=tables, **params), off, on
 
 
-def tau_of(scene_, k, values, state):
-    model = build_model(scene_)
-    prm = evaluate_params(scene_, model, values)
-    kin = forward_kinematics(model, prm, prm["q0"], prm["v0"])
-    load = EFFECTS[scene_.effects[k].effect].force(model, model.sites[k], prm["effects"][k],
-                                                   _ctx(model, prm, kin, state))
-    return generalized_forces(model, kin, load)
+NAMES = sorted(CASES)
 
 
-def _ctx(model, prm, kin, state):
-    from physdsl.physics.effects import Ctx
-    from physdsl.physics.integrate import total_gravity
-    return Ctx(kin, prm, jnp.asarray(0.1), jnp.asarray(0.1), total_gravity(model, prm), *state)
+def uses_with_own_strengths():
+    """(use, off, on) of every case, the strength of case i renamed to the unknown ``s{i}``."""
+    out = []
+    for i, name in enumerate(NAMES):
+        use, off, on = use_for(name)
+        params = {k: (Ref(f"s{i}") if v == Ref("s") else v) for k, v in use.params.items()}
+        out.append((dataclasses.replace(use, params=params), off, on))
+    return out
 
 
-@pytest.mark.parametrize("name", sorted(CASES))
-def test_effect_off_is_absent_and_differentiable(name):
-    check_effect(name, fd=False)
+class AllEffects:
+    """Every case in one scene (after the base gravity), compiled once: ``taus(values)`` is the
+    (cases, nv) generalized force of each case's effect alone at the initial state."""
+
+    def __init__(self):
+        uses = uses_with_own_strengths()
+        s = base([u for u, _, _ in uses])
+        model = build_model(s)
+        # a pretend contact of the (ball, bob) pair pressing with 3 N along z, for rolling resistance
+        state = (jnp.full((model.ncon,), 3.0), jnp.tile(jnp.array([0.0, 0.0, 1.0]), (model.ncon, 1)))
+
+        def taus(values):
+            prm = evaluate_params(s, model, values)
+            kin = forward_kinematics(model, prm, prm["q0"], prm["v0"])
+            ctx = Ctx(kin, prm, jnp.asarray(0.1), jnp.asarray(0.1), total_gravity(model, prm), *state)
+            return jnp.stack([
+                generalized_forces(model, kin, EFFECTS[u.effect].force(
+                    model, model.sites[1 + i], prm["effects"][1 + i], ctx))
+                for i, (u, _, _) in enumerate(uses)])
+
+        self.nv = model.nv
+        self.taus = jax.jit(taus)
+        self.off = {f"s{i}": jnp.asarray(off, float) for i, (_, off, _) in enumerate(uses)}
+        self.on = {f"s{i}": jnp.asarray(on, float) for i, (_, _, on) in enumerate(uses)}
+        self.at_off = np.asarray(self.taus(self.off))
+        self.jac = jax.jit(jax.jacfwd(taus))(self.off)
+
+
+@pytest.fixture(scope="module")
+def all_effects():
+    return AllEffects()
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_effect_off_is_absent_and_differentiable(all_effects, name):
+    i, ae = NAMES.index(name), all_effects
+    assert np.all(ae.at_off[i] == 0.0)  # exactly absent
+    t_on = np.asarray(ae.taus({**ae.off, f"s{i}": ae.on[f"s{i}"]}))[i]
+    if name != "rolling_resistance":  # needs contact rows (none here: no contact pair)
+        assert np.abs(t_on).max() > 1e-6  # and it does something when on
+    assert all(np.all(np.isfinite(np.asarray(j))) for j in ae.jac.values())
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", sorted(CASES))
-def test_effect_gradient_at_off_matches_finite_differences(name):
-    check_effect(name, fd=True)
-
-
-def check_effect(name, fd):
-    use, off, on = use_for(name)
-    s = base([use])
-    k = len(s.effects) - 1
-    # a pretend contact of the (ball, bob) pair pressing with 3 N along z, for rolling resistance
-    model = build_model(s)
-    state = (jnp.full((model.ncon,), 3.0), jnp.tile(jnp.array([0.0, 0.0, 1.0]), (model.ncon, 1)))
-    f = jax.jit(lambda x: tau_of(s, k, {"s": x}, state))
-    t_off = f(jnp.asarray(off, float))
-    assert np.all(np.asarray(t_off) == 0.0)  # exactly absent
-    t_on = f(jnp.asarray(on, float))
-    if name != "rolling_resistance":  # needs contact rows (none here: no contact pair)
-        assert np.abs(np.asarray(t_on)).max() > 1e-6  # and it does something when on
-    J = jax.jacfwd(f)(jnp.asarray(off, float))
-    assert np.all(np.isfinite(np.asarray(J)))
-    if not fd:
-        return
-    # gradient at the off value matches central finite differences
-    x0 = np.asarray(off, float)
-    eps = 1e-6 * max(1.0, float(np.abs(on).max()))
-    for i in range(x0.size):
+@pytest.mark.parametrize("name", NAMES)
+def test_effect_gradient_at_off_matches_finite_differences(all_effects, name):
+    """d(tau)/d(strength) at the off value against central finite differences."""
+    i, ae = NAMES.index(name), all_effects
+    key = f"s{i}"
+    x0 = np.asarray(ae.off[key])
+    eps = 1e-6 * max(1.0, float(np.abs(np.asarray(ae.on[key])).max()))
+    jac = np.asarray(ae.jac[key][i]).reshape(ae.nv, -1)
+    for k in range(x0.size):
         dx = np.zeros(x0.size)
-        dx[i] = eps
+        dx[k] = eps
         dx = dx.reshape(x0.shape)
-        fd = (np.asarray(f(jnp.asarray(x0 + dx))) - np.asarray(f(jnp.asarray(x0 - dx)))) / (2 * eps)
-        jac_i = np.asarray(J).reshape(model.nv, -1)[:, i]
-        np.testing.assert_allclose(jac_i, fd, rtol=1e-6, atol=1e-8)
+        up = np.asarray(ae.taus({**ae.off, key: jnp.asarray(x0 + dx)}))[i]
+        dn = np.asarray(ae.taus({**ae.off, key: jnp.asarray(x0 - dx)}))[i]
+        np.testing.assert_allclose(jac[:, k], (up - dn) / (2 * eps), rtol=1e-6, atol=1e-8)
 
 
 def test_all_effects_off_equal_no_effects_in_a_rollout():
-    uses = [use_for(n) for n in sorted(CASES) if n != "gravity"]
-    values = {f"s{i}": jnp.asarray(off, float) for i, (_, off, _) in enumerate(uses)}
-    renamed = []
-    for i, (u, _, _) in enumerate(uses):
-        from physdsl.expr import Ref
-        renamed.append(type(u)(u.effect, u.target, {k: (Ref(f"s{i}") if v == Ref("s") else v)
-                                                    for k, v in u.params.items()}, u.tables))
-    with_off = build_simulator(base(renamed)).simulate(values)
+    cases = [(i, u, off) for i, (n, (u, off, _)) in enumerate(zip(NAMES, uses_with_own_strengths()))
+             if n != "gravity"]
+    values = {f"s{i}": jnp.asarray(off, float) for i, _, off in cases}
+    with_off = build_simulator(base([u for _, u, _ in cases])).simulate(values)
     plain = build_simulator(base()).simulate({})
     np.testing.assert_array_equal(np.asarray(with_off.q), np.asarray(plain.q))
     np.testing.assert_array_equal(np.asarray(with_off.v), np.asarray(plain.v))
