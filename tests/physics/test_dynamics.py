@@ -1,4 +1,5 @@
 """Rigid-body algorithms: ABA == CRBA solve, RNEA inverts ABA, M and inertia match MuJoCo."""
+import jax
 import jax.numpy as jnp
 import mujoco
 import numpy as np
@@ -35,44 +36,52 @@ def mixed_tree():
     return scene(bodies, joints)
 
 
-def random_state(model, prm, rng):
-    q = np.array(prm["q0"])
-    v = rng.normal(size=model.nv)
-    return jnp.asarray(q), jnp.asarray(v)
-
-
-def test_aba_matches_crba_and_rnea():
+def compute():
+    """ABA, CRBA, RNEA and the kinetic-energy Hessian of the mixed tree at a random state, in one
+    jitted function (one compile, shared by the tests below)."""
     s = mixed_tree()
     model = build_model(s)
-    prm = evaluate_params(s, model, {})
     rng = np.random.default_rng(0)
-    q, v = random_state(model, prm, rng)
-    kin = forward_kinematics(model, prm, q, v)
+    v = jnp.asarray(rng.normal(size=model.nv))
     tau = jnp.asarray(rng.normal(size=model.nv))
-    M = mass_matrix(model, kin)
-    qdd_aba = forward_dynamics(model, kin, tau)
-    qdd_crba = jnp.linalg.solve(M, tau - bias_forces(model, kin))
-    np.testing.assert_allclose(qdd_aba, qdd_crba, rtol=1e-9, atol=1e-9)
-    np.testing.assert_allclose(inverse_dynamics(model, kin, qdd_aba), tau, atol=1e-9)
-    assert np.all(np.linalg.eigvalsh(np.asarray(M)) > 0)
+
+    @jax.jit
+    def run(v, tau):
+        prm = evaluate_params(s, model, {})
+        q = prm["q0"]
+        kin = forward_kinematics(model, prm, q, v)
+        M = mass_matrix(model, kin)
+        qdd_aba = forward_dynamics(model, kin, tau)
+
+        def kinetic(v):
+            k = forward_kinematics(model, prm, q, v)
+            return 0.5 * jnp.einsum("bk,bkl,bl->", k.vel, k.inertia, k.vel)
+
+        return {"M": M, "aba": qdd_aba, "crba": jnp.linalg.solve(M, tau - bias_forces(model, kin)),
+                "rnea": inverse_dynamics(model, kin, qdd_aba), "tau": tau,
+                "hessian": jax.hessian(kinetic)(v)}
+
+    return {k: np.asarray(x) for k, x in run(v, tau).items()}
+
+
+@pytest.fixture(scope="module")
+def tree():
+    return compute()
+
+
+def test_aba_matches_crba_and_rnea(tree):
+    np.testing.assert_allclose(tree["aba"], tree["crba"], rtol=1e-9, atol=1e-9)
+    assert np.abs(tree["aba"]).max() > 0.1
+    np.testing.assert_allclose(tree["rnea"], tree["tau"], atol=1e-9)
+    M = tree["M"]
+    assert np.all(np.linalg.eigvalsh(M) > 0)
     np.testing.assert_allclose(M, M.T, atol=1e-12)
 
 
-def test_mass_matrix_is_the_hessian_of_kinetic_energy():
+def test_mass_matrix_is_the_hessian_of_kinetic_energy(tree):
     """M = d^2 KE / dv^2 with KE = sum_i vel_i . I_i vel_i / 2 from forward kinematics alone
     (an independent route: no Jacobians)."""
-    import jax
-    s = mixed_tree()
-    model = build_model(s)
-    prm = evaluate_params(s, model, {})
-    q, v = random_state(model, prm, np.random.default_rng(1))
-    kin = forward_kinematics(model, prm, q, v)
-
-    def kinetic(v):
-        k = forward_kinematics(model, prm, q, v)
-        return 0.5 * jnp.einsum("bk,bkl,bl->", k.vel, k.inertia, k.vel)
-
-    np.testing.assert_allclose(mass_matrix(model, kin), jax.hessian(kinetic)(v), atol=1e-12)
+    np.testing.assert_allclose(tree["M"], tree["hessian"], atol=1e-12)
 
 
 CHAIN_XML = """<mujoco><option gravity="0 0 -9.81"/><worldbody>
@@ -91,17 +100,23 @@ def test_mass_matrix_and_bias_match_mujoco():
     prm = evaluate_params(s, model, {})
     q = np.array([0.3, -0.5, 0.8])
     v = np.array([1.0, -2.0, 0.5])
-    kin = forward_kinematics(model, prm, jnp.asarray(q), jnp.asarray(v))
+
+    @jax.jit
+    def mass_and_bias(q, v):
+        kin = forward_kinematics(model, prm, q, v)
+        return mass_matrix(model, kin), bias_forces(model, kin)
+
+    M_ours, bias = mass_and_bias(jnp.asarray(q), jnp.asarray(v))
     m, d = model_data(CHAIN_XML)
     d.qpos[:], d.qvel[:] = q, v
     mujoco.mj_forward(m, d)
     M = np.zeros((3, 3))
     mujoco.mj_fullM(m, d, M)
-    np.testing.assert_allclose(mass_matrix(model, kin), M, rtol=1e-10)
+    np.testing.assert_allclose(M_ours, M, rtol=1e-10)
     # MuJoCo's qfrc_bias includes gravity; ours is velocity-only: compare with gravity removed
     m.opt.gravity[:] = 0
     mujoco.mj_forward(m, d)
-    np.testing.assert_allclose(bias_forces(model, kin), d.qfrc_bias, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(bias, d.qfrc_bias, rtol=1e-9, atol=1e-12)
 
 
 @pytest.mark.parametrize("kind,size,mjsize", [
