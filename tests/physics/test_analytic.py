@@ -70,7 +70,7 @@ def test_double_pendulum_energy_rk4(dt, tol):
     sim = build_simulator(s)
     out = sim.simulate({})
     prm = sim.params({})
-    E = jax.vmap(lambda q, v: energy(sim.model, prm, q, v))(out.q, out.v)
+    E = jax.jit(jax.vmap(lambda q, v: energy(sim.model, prm, q, v)))(out.q, out.v)
     scale = float(jnp.max(jnp.abs(E - E[0]))) / float(jnp.abs(E[0]))
     assert scale < tol, scale
     assert float(jnp.std(out.v[:, 1])) > 1.0  # it really swings

@@ -193,40 +193,57 @@ def zero_theta():
     return {"dM": jnp.zeros((6, 6)), "dv": jnp.zeros(6), "dmu": jnp.zeros(3), "de": jnp.zeros(3)}
 
 
-def test_implicit_gradients_match_finite_differences_and_unrolling():
-    loss = loss_fn(True)
-    grad_implicit = jax.jit(jax.grad(loss))
-    grad_unrolled = jax.jit(jax.grad(loss_fn(False)))
-    loss_j = jax.jit(loss)
+def fd_directions(rng):
+    """Each v_free, mu, e entry, and four symmetric perturbations of M."""
+    dirs = []
+    for key, shape in (("dv", (6,)), ("dmu", (3,)), ("de", (3,))):
+        for i in range(shape[0]):
+            d = zero_theta()
+            d[key] = d[key].at[i].set(1.0)
+            dirs.append(d)
+    for _ in range(4):
+        S = rng.normal(size=(6, 6))
+        d = zero_theta()
+        d["dM"] = jnp.asarray(S + S.T)
+        dirs.append(d)
+    return dirs
+
+
+def fd_seeds():
+    """Three random problems away from kinks (FD across a kink is meaningless)."""
     seeds = [s for s in range(12) if strictly_complementary(random_problem(s))][:3]
-    # the loss is O(1e3) here: FD carries ~1e-14 relative solver noise / eps, hence the atol
     assert len(seeds) == 3
+    return seeds
+
+
+def test_implicit_gradients_match_finite_differences():
+    grad_implicit = jax.jit(jax.grad(loss_fn(True)))
+    loss_j = jax.jit(loss_fn(True))
+    # the loss is O(1e3) here: FD carries ~1e-14 relative solver noise / eps, hence the atol
     rng = np.random.default_rng(1)
-    for seed in seeds:
+    for seed in fd_seeds():
         p = random_problem(seed)
         th = zero_theta()
         g = grad_implicit(th, p)
-        # directions: each v_free, mu, e entry, and symmetric perturbations of M
-        dirs = []
-        for key, shape in (("dv", (6,)), ("dmu", (3,)), ("de", (3,))):
-            for i in range(shape[0]):
-                d = zero_theta()
-                d[key] = d[key].at[i].set(1.0)
-                dirs.append(d)
-        for _ in range(4):
-            S = rng.normal(size=(6, 6))
-            d = zero_theta()
-            d["dM"] = jnp.asarray(S + S.T)
-            dirs.append(d)
         eps = 1e-5
         scale = max(float(jnp.max(jnp.abs(x))) for x in jax.tree.leaves(g))
-        for d in dirs:
+        for d in fd_directions(rng):
             plus = jax.tree.map(lambda a, b: a + eps * b, th, d)
             minus = jax.tree.map(lambda a, b: a - eps * b, th, d)
             fd = (loss_j(plus, p) - loss_j(minus, p)) / (2 * eps)
             an = sum(jnp.vdot(g[k], d[k]) for k in th)
             assert abs(float(an - fd)) <= 1e-3 * abs(float(fd)) + 1e-8 * scale, (seed, d, an, fd)
-        gu = grad_unrolled(th, p)
+
+
+@pytest.mark.slow
+def test_implicit_gradients_match_unrolling():
+    """The implicit KKT gradient equals differentiating the solver's unrolled iterations."""
+    grad_implicit = jax.jit(jax.grad(loss_fn(True)))
+    grad_unrolled = jax.jit(jax.grad(loss_fn(False)))
+    for seed in fd_seeds():
+        p = random_problem(seed)
+        th = zero_theta()
+        g, gu = grad_implicit(th, p), grad_unrolled(th, p)
         for k in th:
             np.testing.assert_allclose(g[k], gu[k], rtol=1e-5, atol=1e-8)
 
