@@ -6,9 +6,12 @@ shapes: see ``shape_size``), colour logits (3), log material ambient and
 diffuse factors (2), and the light direction's tilt from its nominal value (2, rad). The
 prior is independent Normal in these coordinates (``Prior``) and uniform over shapes.
 
-Sampling is Metropolis-within-Gibbs: a blackjax ``normal_random_walk`` step for the
-continuous block (per-chain step size adapted towards 25 % acceptance during warmup), then a
+Sampling is Metropolis-within-Gibbs: a step for the continuous block given the shape, then a
 Metropolis move of the shape to another kind drawn uniformly, keeping the continuous values.
+The continuous step is a blackjax ``normal_random_walk`` (``continuous="rw"``: per-chain scale
+adapted towards 25 % acceptance during warmup) or an HMC step (``continuous="hmc"``: the
+renderer's gradients; step size adapted towards 75 % acceptance, a diagonal mass matrix from
+the first half of warmup).
 Each chain starts from a jittered prior mean improved by a short Adam fit of the continuous
 block for every shape, at the best-fitting shape (a multi-start: the random walk starts in
 the typical set instead of spending its budget finding the object). The
@@ -17,6 +20,7 @@ draws posterior samples beside the target (the PhysWM figure of posterior draws)
 """
 from __future__ import annotations
 
+from functools import partial
 from typing import NamedTuple
 
 import blackjax
@@ -142,46 +146,81 @@ class Draws(NamedTuple):
 
 
 def sample(target, context: Context, prior: Prior, key, chains: int = 3, warmup: int = 400,
-           samples: int = 400, sigma: float = 0.05, init_steps: int = 150, levels: int = 3
-           ) -> Draws:
-    """Posterior draws of the unknown object behind ``target`` (H, W, 3 in [0, 1])."""
+           samples: int = 400, sigma: float = 0.05, init_steps: int = 150, levels: int = 3,
+           continuous: str = "rw", leapfrog: int = 8) -> Draws:
+    """Posterior draws of the unknown object behind ``target`` (H, W, 3 in [0, 1]).
+
+    ``continuous``: "rw" (random walk) or "hmc" (``leapfrog`` steps per move) for the
+    continuous block; the shape always moves by Metropolis.
+    """
+    if continuous not in ("rw", "hmc"):
+        raise ValueError(f"continuous must be 'rw' or 'hmc', not {continuous!r}")
     target = jnp.asarray(target)
 
     def logdensity(theta, shape):
         return log_posterior(theta, shape, target, context, prior, sigma, levels)
 
     theta0, shape0 = _initial(logdensity, prior, jax.random.fold_in(key, 0), chains, init_steps)
-    step0 = jnp.asarray(_STEP)
+    scale0 = jnp.asarray(_STEP)
+    move = _rw_move if continuous == "rw" else partial(_hmc_move, leapfrog=leapfrog)
+    goal = 0.25 if continuous == "rw" else 0.75
 
-    def gibbs(carry, key, adapt):
-        theta, shape, logp, log_scale, t = carry
+    def gibbs(carry, key, adapt, scale):
+        theta, shape, logp, log_step, t = carry
         k1, k2, k3 = jax.random.split(key, 3)
-        rw = blackjax.normal_random_walk(lambda x: logdensity(x, shape), step0 * jnp.exp(log_scale))
-        state, info = rw.step(k1, blackjax.mcmc.random_walk.RWState(theta, logp))
-        accept = info.is_accepted.astype(float)
+        theta, logp, accept = move(k1, lambda x: logdensity(x, shape), theta, logp,
+                                   jnp.exp(log_step), scale)
         if adapt:
-            log_scale = log_scale + (accept - 0.25) * 2.0 / (t + 10.0) ** 0.6
-        theta, logp = state.position, state.logdensity
+            log_step = log_step + (accept - goal) * 2.0 / (t + 10.0) ** 0.6
         # shape move: another kind uniformly, continuous values kept (symmetric proposal)
         new = (shape + jax.random.randint(k2, (), 1, len(SHAPES))) % len(SHAPES)
         logp_new = logdensity(theta, new)
         take = jnp.log(jax.random.uniform(k3)) < logp_new - logp
         shape = jnp.where(take, new, shape)
         logp = jnp.where(take, logp_new, logp)
-        return (theta, shape, logp, log_scale, t + 1), (theta, shape, accept)
+        return (theta, shape, logp, log_step, t + 1), (theta, shape, accept)
 
     def run_chain(theta, shape, key):
         kw, ks = jax.random.split(key)
         carry = (theta, shape, logdensity(theta, shape), jnp.zeros(()), jnp.zeros(()))
-        carry, _ = jax.lax.scan(lambda c, k: gibbs(c, k, True), carry,
-                                jax.random.split(kw, warmup))
-        _, (th, sh, acc) = jax.lax.scan(lambda c, k: gibbs(c, k, False), carry,
+        scale, n_warm = scale0, warmup
+        if continuous == "hmc" and warmup >= 16:  # first half of warmup: a diagonal metric
+            kh, kw = jax.random.split(kw)
+            half = warmup // 2
+            carry, (th, _, _) = jax.lax.scan(lambda c, k: gibbs(c, k, True, scale0), carry,
+                                             jax.random.split(kh, half))
+            scale = jnp.sqrt(0.8 * jnp.var(th[half // 2:], axis=0) + 0.2 * scale0 ** 2)
+            # the same move length in the new metric; the adaptation restarts
+            carry = carry[:3] + (carry[3] + jnp.mean(jnp.log(scale0 / scale)), jnp.zeros(()))
+            n_warm = warmup - half
+        carry, _ = jax.lax.scan(lambda c, k: gibbs(c, k, True, scale), carry,
+                                jax.random.split(kw, n_warm))
+        _, (th, sh, acc) = jax.lax.scan(lambda c, k: gibbs(c, k, False, scale), carry,
                                         jax.random.split(ks, samples))
         return th, sh, acc.mean()
 
     keys = jax.random.split(jax.random.fold_in(key, 1), chains)
     th, sh, acc = jax.jit(jax.vmap(run_chain))(theta0, shape0, keys)
     return Draws(np.asarray(th), np.asarray(sh), np.asarray(acc))
+
+
+def _rw_move(key, logdensity, theta, logp, step, scale):
+    """One random-walk Metropolis step with per-coordinate scale ``step * scale``."""
+    rw = blackjax.normal_random_walk(logdensity, step * scale)
+    state, info = rw.step(key, blackjax.mcmc.random_walk.RWState(theta, logp))
+    return state.position, state.logdensity, info.is_accepted.astype(float)
+
+
+def _hmc_move(key, logdensity, theta, logp, step, scale, leapfrog: int):
+    """One HMC step (``leapfrog`` steps of size ``step``, inverse mass ``scale**2``); the
+    returned rate is the move's acceptance probability (smoother for adaptation)."""
+    del logp  # the state is rebuilt with the gradient at this shape
+    state = blackjax.mcmc.hmc.init(theta, logdensity)
+    state, info = _HMC_KERNEL(key, state, logdensity, step, scale ** 2, leapfrog)
+    return state.position, state.logdensity, info.acceptance_rate
+
+
+_HMC_KERNEL = blackjax.mcmc.hmc.build_kernel()
 
 
 def _initial(logdensity, prior: Prior, key, chains: int, steps: int):
