@@ -270,7 +270,9 @@ CASES = [
 ]
 
 
-@pytest.mark.parametrize("case", CASES, ids=[f"{c[0]}-{c[1]}" for c in CASES])
+# box-box (the largest detector, ~6 CPU s to compile) runs in the slow suite only
+@pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.slow) if c[:2] == ("box", "box")
+                                  else c for c in CASES], ids=[f"{c[0]}-{c[1]}" for c in CASES])
 def test_distance_gradients_match_finite_differences(case):
     ka, kb, pa, qa, sa, pb, qb, sb = case
 
