@@ -276,8 +276,9 @@ def sample(path: str | Path, n: int, seed: int = 0, outdir: str | Path = "sample
     """Draw ``n`` scenes from the program at ``path`` into ``outdir``.
 
     Writes ``scene-0001/scene.phys`` (concrete), ``trajectory.csv`` and ``joints.csv``
-    (simulated, <= 100 Hz) per draw, and ``parameters.csv`` (one row per scene). Refuses a
-    non-empty ``outdir`` unless ``force``.
+    (simulated, <= 100 Hz) and, per camera, ``frames-CAM/`` (rendered PNG frames, their
+    ``times.csv`` and ``render.mp4``) per draw, and ``parameters.csv`` (one row per scene).
+    Refuses a non-empty ``outdir`` unless ``force``.
     """
     import jax
 
@@ -300,6 +301,7 @@ def sample(path: str | Path, n: int, seed: int = 0, outdir: str | Path = "sample
     moving = [not b.fixed and (b.shape is None or b.shape.kind != "plane") for b in
               (scene.body(name) for name in sim.body_names)]
     kinds = [scene.joint(name).kind for name in sim.joint_names]
+    cameras = camera_renderers(model) if simulate else {}
     scenes = []
     for i in range(n):
         folder = outdir / f"scene-{i + 1:04d}"
@@ -311,6 +313,9 @@ def sample(path: str | Path, n: int, seed: int = 0, outdir: str | Path = "sample
             joints = joints_csv(rollout, sim.joint_names, kinds)
             if joints is not None:
                 io.write_text(folder / "joints.csv", joints)
+            for cam, (times, draw) in cameras.items():
+                write_camera_frames(folder / frames_folder(cam), times,
+                                    draw(rollout, {k: v[i] for k, v in draws.items()}))
         scenes.append(folder / "scene.phys")
     names = columns({k: v[0] for k, (v, _) in params.items()})
     table = (np.concatenate([v.reshape(n, -1) for v, _ in params.values()], axis=1)
@@ -324,10 +329,47 @@ def sample(path: str | Path, n: int, seed: int = 0, outdir: str | Path = "sample
     return SampleResult(outdir, tuple(scenes), tuple(names), table)
 
 
+def frames_folder(camera: str) -> str:
+    """Folder of a generated scene's frames seen by ``camera``."""
+    return f"frames-{camera}"
+
+
+def camera_renderers(model) -> dict:
+    """camera name -> (frame times, jitted ``(rollout, values) -> images``) for every camera
+    of the scene (none when it has no body to draw). Times: the camera's observed frame
+    times, else every 1/30 s over the simulated span."""
+    import jax
+
+    from .render import files
+    from .render.scene import drawn_bodies, render_frames
+
+    scene = model.scene
+    if not drawn_bodies(scene):
+        return {}
+    out = {}
+    for cam in scene.cameras:
+        times = files.frame_times(model, cam.name, None)
+        out[cam.name] = (times, jax.jit(
+            lambda rollout, values, name=cam.name, times=times: render_frames(
+                scene, model.simulator, rollout, values, name, times)))
+    return out
+
+
+def write_camera_frames(folder: Path, times: np.ndarray, images) -> None:
+    """PNG frames (and render.mp4) of one camera, with their times as ``times.csv``."""
+    from .render import files
+
+    images = np.asarray(images)
+    rate = 1.0 / float(np.median(np.diff(times))) if len(times) > 1 else files.DEFAULT_FPS
+    files.write_frames(images, folder, rate)
+    io.write_text(folder / "times.csv", "t\n" + "".join(f"{t:.10g}\n" for t in times))
+
+
 def _for_scene_folder(module, src_dir: Path, outdir: Path, duration: float):
     """``module`` as written one folder below ``outdir``: file names rebased, the duration
     fixed, and observations re-pointed at the scene's own generated data (positions and
-    orientations in trajectory.csv, hinge/slider angles in joints.csv; others dropped)."""
+    orientations in trajectory.csv, hinge/slider angles in joints.csv, camera images in
+    frames-CAM/; others dropped)."""
     import dataclasses
 
     from .export import _ensure_duration, _scene_decl, _with_items, rebase_paths
@@ -344,6 +386,10 @@ def _for_scene_folder(module, src_dir: Path, outdir: Path, duration: float):
             elif item.quantity == "angle":
                 item = dataclasses.replace(item, file="joints.csv", where=("joint", item.target),
                                            rate=None, times=None)
+            elif item.quantity == "image":
+                folder = frames_folder(item.target)
+                item = dataclasses.replace(item, file=f"{folder}/*.png", where=None, rate=None,
+                                           times=f"{folder}/times.csv")
             else:
                 continue
         items.append(item)

@@ -108,3 +108,52 @@ def test_cli_export_and_sample(tmp_path):
     assert main(["sample", str(out), "-n", "2", "-o", str(tmp_path / "gen"), "--no-simulate"]) == 0
     assert (tmp_path / "gen" / "scene-0002" / "scene.phys").exists()
     assert main(["sample", str(out), "-n", "2", "-o", str(tmp_path / "gen"), "--no-simulate"]) == 2
+
+
+SEEN = """
+scene seen {{
+  world {{ timestep: 10 ms  duration: 0.2 s }}
+  param h0 ~ normal(1.0 m, 0.2 m)
+  ground floor {{ normal: (0, 0, 1)  point: (0, 0, 0) m }}
+  body ball {{ shape: sphere(radius: 8 cm)  mass: 200 g  position: (0, 0, h0)  collide: false
+              color: (0.9, 0.2, 0.1) }}
+  camera cam {{ position: (0, -3, 1) m  look_at: (0, 0, 1) m  up: (0, 0, 1)  fov: 45 deg
+               size: (16, 20)  background: (0.55, 0.7, 0.9) }}
+  {observe}
+}}
+"""
+
+
+def _ball_row(path):
+    import cv2
+
+    img = cv2.imread(str(path)).astype(float)
+    red = np.clip(img[..., 2] - img[..., 0] - 10, 0, None)  # BGR: R - B
+    return (red * np.arange(img.shape[0])[:, None]).sum() / red.sum()
+
+
+def test_scenes_with_a_camera_get_frames_that_observe_reads_back(tmp_path):
+    src = tmp_path / "seen.phys"
+    src.write_text(SEEN.format(observe=""))
+    gen = sample(src, 2, seed=1, outdir=tmp_path / "gen")
+    h0 = gen.table[:, list(gen.names).index("h0")]
+    rows = []
+    for path in gen.scenes:
+        frames = path.parent / "frames-cam"
+        pngs = sorted(frames.glob("*.png"))
+        times = np.loadtxt(frames / "times.csv", skiprows=1)
+        np.testing.assert_allclose(times, np.arange(7) / 30.0)  # 1/30 s over 0.2 s
+        assert len(pngs) == 7
+        rows.append(_ball_row(pngs[0]))
+    assert (rows[0] < rows[1]) == (h0[0] > h0[1])  # the higher ball is drawn higher
+    # a scene observing those frames: its draws observe their own frames at the same times
+    observed = tmp_path / "observed.phys"
+    observed.write_text(SEEN.format(observe='observe cam.image from "gen/scene-0001/frames-cam/'
+                                            '*.png" times "gen/scene-0001/frames-cam/times.csv" '
+                                            '{ noise: 0.05 }'))
+    again = sample(observed, 1, seed=2, outdir=tmp_path / "again")
+    scene = syntax.load(again.scenes[0])
+    (obs,) = scene.observations
+    assert obs.quantity == "image" and scene.unknowns == ()
+    assert [p.parent.parent for p in obs.frames] == [again.scenes[0].parent] * 7
+    np.testing.assert_allclose(obs.times, np.arange(7) / 30.0)
