@@ -48,6 +48,10 @@ def _expand(source) -> list[Path]:
 def _read_image(path: Path) -> np.ndarray:
     if not path.exists():
         raise DataError("frame file not found", path)
+    if path.suffix.lower() in VIDEO_SUFFIXES:
+        raise DataError("a video where image frames are expected", path,
+                        hint="a scene's image observation reads image files; split the video "
+                             "into frames first (e.g. ffmpeg -i clip.mp4 frames/%04d.png)")
     img = _cv2().imread(str(path), _cv2().IMREAD_COLOR)
     if img is None:
         raise DataError("cannot read this file as an image", path,

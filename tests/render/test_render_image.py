@@ -46,6 +46,9 @@ def test_missing_wrong_size_and_unreadable_frames(tmp_path, ball_case):
     bad.write_bytes(b"not a video")
     with pytest.raises(DataError, match="clip.avi"):
         load_frames(str(bad))
+    with pytest.raises(DataError, match="clip.avi") as ex:  # a video among image frames
+        load_frames([files[0], bad], rate=30)
+    assert "split the video" in ex.value.render()
     with pytest.raises(DataError, match="2 frames but 3"):
         load_frames(files[:1] * 2, times=[0, 1, 2])
 
