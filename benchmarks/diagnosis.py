@@ -7,7 +7,8 @@ candidate, then refits of the best ``--confirm`` physical candidates) and report
 
 - ``score_rank.CASE``: rank of the true effect on the true target among the *physical*
   candidates by score test alone (1 = the score test found it),
-- ``rank.CASE``: its rank in the final table (all candidates, after confirmation),
+- ``rank.CASE``: its rank in the final table (all candidates, after confirmation);
+  candidates that act exactly alike on the data (``same_as``) share a rank,
 - ``winner.CASE``: the confirmed effect (or ``none``), ``verdict.CASE``,
 - ``rms_before.CASE`` / ``rms_after.CASE``: residual RMS in noise units without the effect and
   after refitting with the winner,
@@ -60,15 +61,17 @@ def run_case(name: str, confirm: int, seed: int) -> dict:
     keys = [f"{r.effect}@{r.target}" for r in diag.ranking]
     physical = sorted((r for r in diag.ranking if r.kind == "effect"),
                       key=lambda r: (r.log_p, -r.statistic))
-    phys_keys = [f"{r.effect}@{r.target}" for r in physical]
+    # candidates acting exactly alike (same score column) share a place: the data cannot order them
+    phys_keys = list(dict.fromkeys(r.same_as or f"{r.effect}@{r.target}" for r in physical))
     row = next((r for r in diag.ranking if f"{r.effect}@{r.target}" == true_key), None)
+    true_place = (row.same_as or true_key) if row is not None else None
     w = diag.winner
     out = {
         "case": name, "true": true_key,
-        "score_rank": phys_keys.index(true_key) + 1 if true_key in phys_keys else None,
+        "score_rank": phys_keys.index(true_place) + 1 if true_place in phys_keys else None,
         "n_physical": len(phys_keys),
-        "rank": keys.index(true_key) + 1 if true_key in keys else None,
-        "n_candidates": len(keys),
+        "rank": row.rank if row is not None else None,
+        "n_candidates": diag.ranking[-1].rank if diag.ranking else 0,
         "top_score": keys[0] if keys else None,
         "winner": f"{w.effect}@{w.target}" if w else None,
         # the true effect acts exactly like the winner on these data (same score column)

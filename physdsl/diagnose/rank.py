@@ -218,8 +218,9 @@ def quick_fit(model, seed: int = 0):
         return model.infer(backend="map", chains=2, warmup=300, samples=FIT_DRAWS, seed=seed,
                            progress=False)
     except np.linalg.LinAlgError as err:
-        idata = model.infer(backend="rmh", chains=2, warmup=400, samples=2 * FIT_DRAWS, seed=seed,
-                            progress=False)
+        # each transition costs a rollout (on contact scenes the bulk of a fit): a short run
+        idata = model.infer(backend="rmh", chains=2, warmup=200, samples=FIT_DRAWS, seed=seed,
+                            init_steps=100, progress=False)
         idata.attrs["fit_note"] = (f"Laplace approximation failed ({err}); posterior sampled by "
                                    "random-walk Metropolis from the modes")
         return idata
@@ -244,6 +245,22 @@ def mark_twins(ranked: list[Ranked], directions: dict) -> None:
             r.same_as = twin
         else:
             seen.append((r.kind, key, d))
+
+
+def tie_twins(ranked: list[Ranked]) -> list[Ranked]:
+    """Number the table: each candidate that acts exactly like another (``same_as``) follows
+    it and shares its rank, as the data cannot order them."""
+    out: list[Ranked] = []
+    rank = 0
+    for r in ranked:
+        if r.same_as:
+            continue
+        rank += 1
+        key = f"{r.effect}@{r.target}"
+        for t in [r] + [t for t in ranked if t.same_as == key]:
+            t.rank = rank
+            out.append(t)
+    return out
 
 
 def confirm(model, idata, ranked: list[Ranked], cands: dict, k: int, base_rms: float) -> None:
@@ -363,8 +380,7 @@ def diagnose(model, idata, *, confirm_top: int = 2, alpha: float = 0.05, outdir=
             winner = confirmed[0]
             # final order: confirmed effects by evidence (ΔELPD), then the rest by score
             ranked = confirmed + [r for r in ranked if not r.confirmed]
-            for i, r in enumerate(ranked, start=1):
-                r.rank = i
+    ranked = tie_twins(ranked)
     t2 = time.perf_counter()
     top = ranked[0] if ranked else None
     if winner is not None:

@@ -145,3 +145,14 @@ def test_candidates_of_a_contact_scene(tmp_path):
     assert not any(k.startswith(("damper@", "contact_friction@", "spring@", "gravity@")) for k in keys)
     assert {c.key for c in sensor_candidates(scene)} == {
         f"{k}@ball.position" for k in ("offset", "gain", "delay")}
+
+
+def test_twins_follow_their_representative_and_share_its_rank():
+    from physdsl.diagnose.rank import Ranked, tie_twins
+
+    rows = [Ranked(0, "effect", e, t, 1.0, 0.1, 1) for e, t in
+            [("linear_drag", "rod"), ("joint_friction", "hinge"), ("joint_damping", "hinge")]]
+    rows[2].same_as = "linear_drag@rod"
+    out = tie_twins(rows)
+    assert [(r.effect, r.rank) for r in out] == [("linear_drag", 1), ("joint_damping", 1),
+                                                 ("joint_friction", 2)]
