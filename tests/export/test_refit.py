@@ -15,7 +15,7 @@ DATA = Path(__file__).resolve().parent / "data"
 TOSS = DATA / "toss.phys"
 
 
-@pytest.mark.slow
+@pytest.mark.slow  # two NUTS fits of the toss (about 80 s CPU, 5-6 min under load)
 def test_refit_of_the_exported_program_is_consistent(tmp_path):
     settings = dict(chains=2, warmup=150, samples=200, seed=1, progress=False, max_tree_depth=5,
                     init_steps=100)
@@ -32,6 +32,8 @@ def test_refit_of_the_exported_program_is_consistent(tmp_path):
         a = np.asarray(first.posterior[name].values).reshape(-1, *again[name][0].shape[1:])
         b = again[name][0]
         sd = a.std(0)
-        # same place; the data counted twice can only sharpen (by about sqrt 2)
+        # same place; the data counted twice can only sharpen: by sqrt 2 where the data
+        # dominate, less where the prior still counts (measured sd ratios: h0 0.71, velocity
+        # 0.81, 0.67, 0.77, drag 0.85, mass 0.94; mass is known only through drag / mass)
         assert np.all(np.abs(a.mean(0) - b.mean(0)) < 2.0 * sd + 1e-12), name
-        assert np.all(b.std(0) < 1.3 * sd) and np.all(b.std(0) > 0.4 * sd), name
+        assert np.all(b.std(0) < 1.1 * sd) and np.all(b.std(0) > 0.55 * sd), name
