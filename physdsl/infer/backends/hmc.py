@@ -1,4 +1,5 @@
-"""HMC and NUTS from blackjax, tuned by Stan's window adaptation (step size, diagonal mass).
+"""HMC and NUTS from blackjax, tuned by Stan's window adaptation (step size, mass matrix:
+dense by default, diagonal with ``Settings.dense_mass=False``).
 
 Warmup and sampling run the same compiled block (``physdsl.infer.blocks``): up to
 ``settings.block`` transitions of every chain per call, chains vmapped, with the step size
@@ -38,10 +39,10 @@ def tree_where(cond, a, b):
     return jax.tree_util.tree_map(lambda x, y: jnp.where(cond, x, y), a, b)
 
 
-def _window(target_accept: float):
+def _window(settings):
     with warnings.catch_warnings():  # base() is blackjax's documented building block
         warnings.simplefilter("ignore", DeprecationWarning)
-        return window_base(True, target_acceptance_rate=target_accept)
+        return window_base(not settings.dense_mass, target_acceptance_rate=settings.target_accept)
 
 
 class _BlackjaxHMCFamily(Backend):
@@ -54,7 +55,7 @@ class _BlackjaxHMCFamily(Backend):
         """The compiled block: carry (state, adaptation state, (step size, inverse mass));
         shared (stages (block, 2), adapting)."""
         extra = self._extra(settings)
-        _, update, _ = _window(settings.target_accept)
+        _, update, _ = _window(settings)
 
         def transition(data, key, carry, shared, i):
             state, astate, (step_size, imm) = carry
@@ -66,16 +67,16 @@ class _BlackjaxHMCFamily(Backend):
             astate = tree_where(adapting, new, astate)
             return (state, astate, carry[2]), (state.position, _stats(info))
 
-        key = (self.name, tuple(sorted(extra.items())), settings.target_accept)
+        key = (self.name, tuple(sorted(extra.items())), settings.target_accept, settings.dense_mass)
         return block_runner(problem, key, transition, settings.block)
 
     def warmup(self, problem, positions, key, settings):
-        init, _, final = _window(settings.target_accept)
+        init, _, final = _window(settings)
         run = self._runner(problem, settings)
         positions = jnp.asarray(positions)
         chains = positions.shape[0]
         astates = jax.vmap(lambda x: init(x, INITIAL_STEP_SIZE))(positions)
-        tuning = (jnp.ones(chains), jnp.ones_like(positions))
+        tuning = (jnp.ones(chains), astates.inverse_mass_matrix)  # placeholders while adapting
         carries = (initial_states(problem, positions), astates, tuning)
         n = settings.warmup
         schedule = np.asarray(build_schedule(n), dtype=np.int32).reshape(n, 2)
@@ -91,7 +92,7 @@ class _BlackjaxHMCFamily(Backend):
         return states, params, {"step_size": step_size}
 
     def sample(self, problem, states, params, key, n, settings):
-        init, _, _ = _window(settings.target_accept)
+        init, _, _ = _window(settings)
         run = self._runner(problem, settings)
         states = HMCState(*map(jnp.asarray, states))
         step_size = jnp.asarray(params["step_size"])

@@ -1,7 +1,7 @@
 """numpyro's NUTS through its functional kernel (``numpyro.infer.hmc.hmc``), on the same potential.
 
 Used as a peer of blackjax NUTS (benchmarks, cross-checks). numpyro's ``sample_kernel``
-adapts (dual averaging + diagonal mass matrix) while its iteration count is below
+adapts (dual averaging + mass matrix, dense unless ``Settings.dense_mass`` is off) while its iteration count is below
 ``settings.warmup`` and samples after, so one compiled block of transitions
 (``physdsl.infer.blocks``, chains vmapped, the data passed as the kernel's model argument)
 serves both stages. Chains start from states built with the Problem's compiled
@@ -29,6 +29,7 @@ def _kernels(problem, settings):
             return init_kernel(ParamInfo(x, pe, grad), num_warmup=settings.warmup,
                                target_accept_prob=settings.target_accept,
                                max_tree_depth=settings.max_tree_depth, rng_key=key,
+                               dense_mass=settings.dense_mass,
                                model_args=(data,))
 
         # registers the kernel's static settings (needed when resuming without a warmup)
@@ -36,7 +37,8 @@ def _kernels(problem, settings):
                        jax.random.PRNGKey(0), problem.data)
         return init, sample_kernel
 
-    key = ("numpyro-nuts", settings.warmup, settings.target_accept, settings.max_tree_depth)
+    key = ("numpyro-nuts", settings.warmup, settings.target_accept, settings.max_tree_depth,
+           settings.dense_mass)
     return cached(problem, key, build)
 
 
@@ -48,7 +50,8 @@ def _runner(problem, settings):
         return state, (state.z, {"acceptance_rate": state.accept_prob,
                                  "diverging": state.diverging, "n_steps": state.num_steps})
 
-    key = ("numpyro-nuts", settings.warmup, settings.target_accept, settings.max_tree_depth)
+    key = ("numpyro-nuts", settings.warmup, settings.target_accept, settings.max_tree_depth,
+           settings.dense_mass)
     return block_runner(problem, key, transition, settings.block)
 
 
