@@ -19,6 +19,7 @@ scene toss {{
     position: (-0.4, 0, h0)
     velocity: (1.5, 0, v0)
     color: (0.9, 0.2, 0.1)
+    collide: false  # in flight throughout (no contact solve to compile)
   }}
   camera cam {{ position: (0, -3.5, 1.0) m  look_at: (0, 0, 0.9) m  up: (0, 0, 1)  fov: 45 deg
                size: ({w}, {h})  background: (0.55, 0.7, 0.9) }}
