@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import glob as _glob
 from pathlib import Path
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 import jax.numpy as jnp
 import numpy as np
@@ -17,6 +17,27 @@ from jax.scipy.special import gammaln
 from ..errors import DataError
 
 VIDEO_SUFFIXES = {".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg"}
+
+
+class VideoFrame(NamedTuple):
+    """Frame ``index`` of a video file: one entry of an image observation's frame list."""
+
+    path: Path
+    index: int
+
+    def __str__(self) -> str:
+        return f"{self.path} (frame {self.index})"
+
+
+def is_video(path) -> bool:
+    """Whether ``path`` names a video file (by its suffix)."""
+    return not isinstance(path, (list, tuple)) and Path(str(path)).suffix.lower() in VIDEO_SUFFIXES
+
+
+def video_frames(path: Path) -> tuple[tuple[VideoFrame, ...], float]:
+    """The frames of a video as VideoFrame entries, and its stated frame rate (0 if none)."""
+    frames, fps = _read_video(path)
+    return tuple(VideoFrame(path, i) for i in range(len(frames))), fps
 
 
 def _cv2():
@@ -28,7 +49,7 @@ def _cv2():
 def _expand(source) -> list[Path]:
     """Frame files of a list of paths, a directory (sorted images), or a glob pattern."""
     if isinstance(source, (list, tuple)):
-        return [Path(p) for p in source]
+        return [p if isinstance(p, VideoFrame) else Path(p) for p in source]
     text = str(source)
     path = Path(text)
     if path.is_dir():
@@ -45,13 +66,27 @@ def _expand(source) -> list[Path]:
     return [path]
 
 
+def _read_images(paths) -> list[np.ndarray]:
+    """Images of a list of files and VideoFrame entries (each video read once)."""
+    videos = {p.path: _read_video(p.path)[0] for p in paths if isinstance(p, VideoFrame)}
+    out = []
+    for p in paths:
+        if isinstance(p, VideoFrame):
+            if p.index >= len(videos[p.path]):
+                raise DataError(f"the video has {len(videos[p.path])} frames, not "
+                                f"{p.index + 1}", p.path)
+            out.append(videos[p.path][p.index])
+        else:
+            out.append(_read_image(Path(p)))
+    return out
+
+
 def _read_image(path: Path) -> np.ndarray:
     if not path.exists():
         raise DataError("frame file not found", path)
     if path.suffix.lower() in VIDEO_SUFFIXES:
-        raise DataError("a video where image frames are expected", path,
-                        hint="a scene's image observation reads image files; split the video "
-                             "into frames first (e.g. ffmpeg -i clip.mp4 frames/%04d.png)")
+        raise DataError("a video among image frames", path,
+                        hint="give the video alone (from \"clip.mp4\") or only image files")
     img = _cv2().imread(str(path), _cv2().IMREAD_COLOR)
     if img is None:
         raise DataError("cannot read this file as an image", path,
@@ -88,9 +123,7 @@ def load_frames(source, times: Sequence[float] | None = None, rate: float | None
     times come from ``times``, else ``rate`` (frame i at i / rate), else the video's frame rate.
     ``size`` (width, height), if given, is checked. Any problem is a DataError naming the file.
     """
-    is_video = not isinstance(source, (list, tuple)) and Path(str(source)).suffix.lower() \
-        in VIDEO_SUFFIXES
-    if is_video:
+    if is_video(source):
         frames, fps = _read_video(Path(str(source)))
         names = [f"{source} (frame {i})" for i in range(len(frames))]
         if times is None and rate is None:
@@ -100,7 +133,7 @@ def load_frames(source, times: Sequence[float] | None = None, rate: float | None
             rate = fps
     else:
         files = _expand(source)
-        frames = [_read_image(p) for p in files]
+        frames = _read_images(files)
         names = [str(p) for p in files]
     want = (size[1], size[0]) if size is not None else frames[0].shape[:2]
     for name, img in zip(names, frames):
@@ -197,7 +230,7 @@ def observed_frames(obs) -> tuple[np.ndarray, np.ndarray]:
     key = tuple(str(p) for p in obs.frames)
     if key not in _FRAME_CACHE:
         idx = frame_subset(len(key))
-        _, frames = load_frames([Path(key[i]) for i in idx], times=np.asarray(obs.times)[idx])
+        _, frames = load_frames([obs.frames[i] for i in idx], times=np.asarray(obs.times)[idx])
         _FRAME_CACHE[key] = frames
     idx = frame_subset(len(key))
     return np.asarray(obs.times)[idx], _FRAME_CACHE[key]

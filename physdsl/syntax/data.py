@@ -125,13 +125,31 @@ def read_control(path: Path, columns, span) -> tuple[np.ndarray, np.ndarray]:
 
 def read_image_times(base: Path, pattern: str, rate: float | None, times_file: Path | None,
                      span) -> tuple[tuple[Path, ...], np.ndarray]:
-    """Sorted frame files matching ``pattern`` and their times (i / rate, or a times CSV)."""
-    frames = tuple(sorted(p for p in base.glob(pattern) if p.is_file()))
+    """Frames of ``pattern`` and their times (i / rate, or a times CSV).
+
+    ``pattern`` is a glob of image files (sorted by name) or one video file, whose frames are
+    VideoFrame entries and whose own frame rate serves when neither a rate nor times is given.
+    """
+    from ..observe.image import is_video, video_frames
+
+    if rate is not None and times_file is not None:
+        raise DataError("give the frame times with 'at RATE' or 'times \"file.csv\"', not both",
+                        base / pattern, span=span)
+    if is_video(pattern):
+        frames, fps = video_frames(base / pattern)
+        if rate is None and times_file is None:
+            if fps <= 0:
+                raise DataError("the video does not state its frame rate", base / pattern,
+                                span=span, hint="give the frame times with 'at RATE' or "
+                                                "'times \"file.csv\"'")
+            rate = fps
+    else:
+        frames = tuple(sorted(p for p in base.glob(pattern) if p.is_file()))
     if not frames:
         raise DataError("no frame files match", base / pattern, span=span,
                         hint="the pattern is relative to the scene file, e.g. \"frames/*.png\"")
-    if (rate is None) == (times_file is None):
-        raise DataError("give the frame times with 'at RATE' or 'times \"file.csv\"' (one of them)",
+    if rate is None and times_file is None:
+        raise DataError("give the frame times with 'at RATE' or 'times \"file.csv\"'",
                         base / pattern, span=span)
     if rate is not None:
         if rate <= 0:

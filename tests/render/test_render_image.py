@@ -48,7 +48,7 @@ def test_missing_wrong_size_and_unreadable_frames(tmp_path, ball_case):
         load_frames(str(bad))
     with pytest.raises(DataError, match="clip.avi") as ex:  # a video among image frames
         load_frames([files[0], bad], rate=30)
-    assert "split the video" in ex.value.render()
+    assert "give the video alone" in ex.value.render()
     with pytest.raises(DataError, match="2 frames but 3"):
         load_frames(files[:1] * 2, times=[0, 1, 2])
 

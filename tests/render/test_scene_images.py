@@ -1,4 +1,5 @@
 """Scenes to images (scene_objects, cameras, light) and images as measurements of a scene."""
+import cv2
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -95,6 +96,32 @@ def test_image_likelihood_prefers_the_truth_and_caches_frames(toss):
     for h0, v0 in [(1.12, 2.0), (1.08, 2.0), (1.1, 2.1), (1.1, 1.9)]:
         assert loglik(h0, v0) < best - 1.0
     assert len(image_obs._FRAME_CACHE) == 1  # loaded once
+
+
+def test_a_video_is_an_image_observation_like_its_frames(toss):
+    """``observe cam.image from "clip.avi"``: one entry per video frame, times from the
+    video's own rate, the same likelihood as the PNG frames it holds (lossless FFV1)."""
+    folder, _, _, rollout, images = toss
+    writer = cv2.VideoWriter(str(folder / "clip.avi"), cv2.VideoWriter_fourcc(*"FFV1"), 10.0,
+                             (32, 32))
+    for img in images:
+        writer.write(np.round(img[:, :, ::-1] * 255).astype(np.uint8))
+    writer.release()
+    known = "param h0: 1.1 m\n  param v0: 2.0 m/s"
+    models = [Model(_toss(folder, known, f'observe cam.image from {src} {{ noise: 0.05 }}'))
+              for src in ('"clip.avi"', '"frames/*.png" at 10 Hz')]
+    video, pngs = (m.images[0] for m in models)
+    assert len(video.frames) == len(images) and np.allclose(video.times, pngs.times)
+    assert str(video.frames[2]).endswith("clip.avi (frame 2)")
+    logliks = [float(m.image_log_likelihood(m.images[0], rollout, {})) for m in models]
+    assert np.isclose(logliks[0], logliks[1], rtol=1e-12), logliks
+    at = _toss(folder, known, 'observe cam.image from "clip.avi" at 20 Hz { noise: 0.05 }')
+    assert np.allclose(at.observations[0].times, np.arange(len(images)) / 20.0)
+    (folder / "broken.mp4").write_bytes(b"not a video")
+    with pytest.raises(DataError, match="broken.mp4"):
+        _toss(folder, known, 'observe cam.image from "broken.mp4" { noise: 0.05 }')
+    with pytest.raises(DataError, match="frame times"):
+        _toss(folder, known, 'observe cam.image from "frames/*.png" { noise: 0.05 }')
 
 
 def test_frame_subset_is_even_and_bounded():
