@@ -30,7 +30,7 @@ def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", cha
            confirm_top: int = 2, echo=print) -> list[Round]:
     """Fit, check, diagnose and extend the scene until it explains the data; returns the rounds."""
     from .candidates import physics_candidates
-    from .rank import combined_loo, diagnose, with_effect
+    from .rank import combined_loo, diagnose, fit_with_fallback, with_effect
 
     out = io.prepare_outdir(outdir, force=force)
     scene_path = Path(scene_path)
@@ -43,8 +43,10 @@ def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", cha
         rdir = current.parent
         model = Model(load(current))
         echo(f"round {k}: fitting {current} ({backend}, {chains} chains)")
-        idata = model.infer(backend=backend, chains=chains, warmup=warmup, samples=samples,
-                            seed=seed, outdir=rdir / "fit", force=True, progress=False)
+        idata = fit_with_fallback(model, backend, chains=chains, warmup=warmup, samples=samples,
+                                  seed=seed, outdir=rdir / "fit", force=True, progress=False)
+        if "fit_note" in idata.attrs:
+            echo(f"round {k}: {idata.attrs['fit_note']}")
         report = model.check(idata, outdir=rdir / "check")
         elpd = float(combined_loo(idata).elpd_loo)
         echo(f"round {k}: residual RMS {report.rms_sigma:.2f}σ, ELPD {elpd:.1f}")

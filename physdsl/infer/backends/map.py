@@ -13,6 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ...errors import InferenceError
 from ..base import Backend, register_backend, value_and_grad_fn  # noqa: F401 - re-exported
 
 
@@ -86,8 +87,17 @@ def find_modes(problem, positions, steps: int = 300) -> jnp.ndarray:
     return jnp.asarray(np.stack([find_mode(problem, x, steps) for x in np.asarray(positions)]))
 
 
-def laplace_cov(problem, mode) -> np.ndarray:
-    """Inverse of the negative Hessian at ``mode`` by central differences of the gradient."""
+class LaplaceError(InferenceError):
+    """The log density is not strictly concave at the mode: no Laplace approximation there."""
+
+
+def laplace_sqrt(problem, mode) -> np.ndarray:
+    """A square root S of the Laplace covariance at ``mode`` (S S^T = inverse negative Hessian).
+
+    The Hessian is taken by central differences of the gradient. A direction along which the
+    log density is flat or curves upwards (a kink, e.g. a contact switching on, or an unknown
+    the data do not determine) has no Laplace approximation: LaplaceError names how many.
+    """
     vg = value_and_grad_fn(problem)
     mode = np.asarray(mode, dtype=float)
     d = mode.size
@@ -101,8 +111,13 @@ def laplace_cov(problem, mode) -> np.ndarray:
         H[:, i] = -(gp - gm) / (2 * h[i])
     H = 0.5 * (H + H.T)
     w, v = np.linalg.eigh(H)
-    w = np.where(np.isfinite(w) & (w > 1e-10), w, 1e-10)
-    return (v / w) @ v.T
+    bad = ~np.isfinite(w) | (w <= 1e-10 * max(float(np.max(np.abs(w), initial=0.0)), 1e-300))
+    if bad.any() or not np.all(np.isfinite(v)):
+        raise LaplaceError(f"the log density is not strictly concave at the mode along "
+                           f"{int(bad.sum())} of {d} directions: no Laplace approximation",
+                           hint="sample with --backend nuts or rmh, or give the unknowns the "
+                                "data cannot determine a value or a tighter prior")
+    return v / np.sqrt(w)
 
 
 @register_backend
@@ -112,8 +127,7 @@ class MAP(Backend):
     def warmup(self, problem, positions, key, settings):
         steps = max(settings.warmup, 50)
         modes = find_modes(problem, positions, steps)
-        chols = np.stack([np.linalg.cholesky(laplace_cov(problem, m) + 1e-12 * np.eye(problem.dim))
-                          for m in np.asarray(modes)])
+        chols = np.stack([laplace_sqrt(problem, m) for m in np.asarray(modes)])
         vg = value_and_grad_fn(problem)
         lps = np.array([float(vg(m)[0]) for m in modes])
         return modes, {"chol": jnp.asarray(chols)}, {"log_density_at_mode": lps}

@@ -1,0 +1,26 @@
+"""The Laplace step of the MAP backend: exact on a Gaussian, a clear error where it has no meaning."""
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from physdsl.infer.backends.map import LaplaceError, laplace_sqrt
+from physdsl.infer.base import Problem
+
+
+def _problem(logdensity, dim):
+    return Problem(lambda x, data: logdensity(x), None, dim, None, None, {})
+
+
+def test_laplace_square_root_of_a_gaussian_is_its_covariance():
+    cov = np.array([[2.0, 0.6, 0.0], [0.6, 1.0, -0.3], [0.0, -0.3, 0.5]])
+    prec = jnp.asarray(np.linalg.inv(cov))
+    s = laplace_sqrt(_problem(lambda x: -0.5 * x @ prec @ x, 3), np.zeros(3))
+    assert np.allclose(s @ s.T, cov, rtol=1e-6, atol=1e-8)
+
+
+@pytest.mark.parametrize("curvature", [0.0, 1.0])  # flat (undetermined), curving up (a saddle)
+def test_no_laplace_where_the_log_density_is_not_concave(curvature):
+    problem = _problem(lambda x: -0.5 * x[0] ** 2 + 0.5 * curvature * x[1] ** 2, 2)
+    with pytest.raises(LaplaceError, match="1 of 2 directions") as err:
+        laplace_sqrt(problem, np.zeros(2))
+    assert err.value.exit_code == 1 and "nuts" in err.value.render()
