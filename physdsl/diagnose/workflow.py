@@ -60,6 +60,25 @@ def point_estimate(model, idata) -> dict[str, np.ndarray]:
     return {u.name: np.asarray(idata.posterior[u.name].values[chain, draw]) for u in model.unknowns}
 
 
+def wider_than_prior(model, idata, factor: float = 10.0) -> list[str]:
+    """Unknowns whose posterior draws spread (interquartile range) more than ``factor`` times
+    wider than their prior's: no posterior does that (data narrow a prior, they do not widen
+    it), so it marks a failed approximation, e.g. a Laplace covariance whose curvature was
+    floored where the likelihood has a kink."""
+    import jax
+
+    prior = model.sample_prior(jax.random.PRNGKey(0), 400)
+    out = []
+    for u in model.unknowns:
+        post = np.asarray(idata.posterior[u.name].values)
+        post = post.reshape(-1, *post.shape[2:])
+        width = np.subtract(*np.quantile(post, [0.75, 0.25], axis=0))
+        prior_width = np.subtract(*np.quantile(np.asarray(prior[u.name]), [0.75, 0.25], axis=0))
+        if np.any(width > factor * prior_width + 1e-300):
+            out.append(u.name)
+    return out
+
+
 def noise_unknowns(model) -> set[str]:
     """Names of unknowns that only set measurement noise (nuisance for physics diagnosis)."""
     names: set[str] = set()

@@ -156,3 +156,15 @@ def test_twins_follow_their_representative_and_share_its_rank():
     out = tie_twins(rows)
     assert [(r.effect, r.rank) for r in out] == [("linear_drag", 1), ("joint_damping", 1),
                                                  ("joint_friction", 2)]
+
+
+def test_a_posterior_wider_than_its_prior_is_flagged(quadratic):
+    """Laplace draws with a floored curvature (variance ~1e10) are no posterior: flagged, and
+    the good fit is not."""
+    from physdsl.diagnose.workflow import wider_than_prior
+
+    assert wider_than_prior(quadratic.model, quadratic.idata) == []
+    broken = quadratic.idata.copy()
+    v = broken.posterior["ball.velocity"]
+    broken.posterior["ball.velocity"] = v + 1e5 * (v - v.mean(("chain", "draw")))
+    assert wider_than_prior(quadratic.model, broken) == ["ball.velocity"]
