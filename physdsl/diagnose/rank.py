@@ -288,8 +288,15 @@ def tie_twins(ranked: list[Ranked]) -> list[Ranked]:
     return out
 
 
+EXTRA_REFITS = 2  # further candidates refitted while no refit has explained the misfit
+
+
 def confirm(model, idata, ranked: list[Ranked], cands: dict, k: int, base_rms: float) -> None:
     """Refit the best ``k`` physical candidates with the effect added; fill the comparison fields.
+
+    Far from the truth (a misfit of tens of sigma) the score test's local ranking can put the
+    true effect below the first ``k``: while no refit has brought the residual RMS down to
+    ``CONSISTENT_RMS``, up to ``EXTRA_REFITS`` further candidates are refitted.
 
     A candidate that acts exactly like a better ranked one (``same_as``, see ``mark_twins``)
     would give the same refit, so it is skipped and the next distinct candidate is refitted
@@ -306,10 +313,15 @@ def confirm(model, idata, ranked: list[Ranked], cands: dict, k: int, base_rms: f
         base_lfo = lfo_score(model, quick_fit(Model(model.scene, until=cutoff)), cutoff)
     except REFIT_FAILURES:
         base_lfo = None  # leave-future-out unavailable: judged on ΔELPD and RMS alone
+    from .refine import CONSISTENT_RMS
+
     done = 0
     for r in ranked:
-        if r.kind != "effect" or done >= k or r.same_as:
+        if r.kind != "effect" or r.same_as:
             continue
+        explained = any(t.rms_after is not None and t.rms_after <= CONSISTENT_RMS for t in ranked)
+        if done >= k + EXTRA_REFITS or (done >= k and explained):
+            break
         done += 1
         try:
             _refit(model, r, cands[r.effect + "@" + r.target], base_loo, base_lfo, cutoff, base_rms)

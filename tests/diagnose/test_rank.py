@@ -125,9 +125,31 @@ def test_a_failing_refit_leaves_the_candidate_unconfirmed(quadratic, monkeypatch
     cands = {c.key: c for c in rank.physics_candidates(quadratic.model.scene)}
     rank.confirm(quadratic.model, quadratic.idata, rows, cands, 2, d.rms_sigma)
     tried = [r for r in rows if r.confirmed is not None]
-    assert tried == [physical[0], physical[2]]  # the twin is skipped, the next one refitted
+    # the twin is skipped; nothing explained the misfit, so further candidates were refitted
+    assert tried == [physical[0]] + physical[2:2 + 1 + rank.EXTRA_REFITS]
     for r in tried:
         assert r.confirmed is False and r.note.startswith("refit failed: Matrix is not positive")
+
+
+def test_refits_stop_at_k_once_one_explains_the_misfit(quadratic, monkeypatch):
+    """Past the first k, candidates are refitted only while no refit reached the noise."""
+    import copy
+
+    from physdsl.diagnose import rank
+
+    def refit(model, r, *args):
+        r.rms_after, r.confirmed = (1.0 if r is explained else 5.0), True
+
+    monkeypatch.setattr(rank, "_refit", refit)
+    monkeypatch.setattr(rank, "quick_fit", lambda model, seed=0: quadratic.idata)
+    monkeypatch.setattr(rank, "lfo_score", lambda *a: 0.0)
+    cands = {c.key: c for c in rank.physics_candidates(quadratic.model.scene)}
+    for first_good, expected in ((0, 2), (3, 4)):
+        rows = copy.deepcopy(quadratic.diagnosis.ranking)
+        physical = [r for r in rows if r.kind == "effect"]
+        explained = physical[first_good]
+        rank.confirm(quadratic.model, quadratic.idata, rows, cands, 2, 2.0)
+        assert sum(r.confirmed is not None for r in rows) == expected
 
 
 def test_candidates_of_a_contact_scene(tmp_path):
