@@ -13,11 +13,15 @@ Euler) with the same priors and noise, so both log densities agree to rounding
 - ``ess_per_s_physdsl`` (``physdsl infer --backend nuts``, second run: compiled stages are
   cached, so this is initialisation + warmup + sampling + posterior pass + InferenceData),
   ``ess_per_s_blackjax_hand`` (blackjax NUTS with window adaptation on the hand-written
-  density, one jitted vmapped run, after compile), ``ess_per_s_numpyro`` (numpyro NUTS on the
-  hand-written model, second run); ESS is arviz's bulk ESS, minimum over parameters;
-- ``ess_per_s_ratio`` (physdsl over hand-written blackjax), ``ess_per_s_ratio_vs_numpyro``.
+  density, one jitted vmapped run, after compile; diagonal mass matrix, blackjax's default),
+  ``ess_per_s_blackjax_hand_dense`` (the same with a dense mass matrix, as physdsl uses by
+  default), ``ess_per_s_numpyro`` (numpyro NUTS on the hand-written model, second run); ESS
+  is arviz's bulk ESS, minimum over parameters;
+- ``ess_per_s_ratio`` (physdsl over hand-written blackjax), ``ess_per_s_ratio_vs_numpyro``,
+  ``ess_per_s_ratio_vs_blackjax_hand_dense``; ``ess_per_cpu_s_ratio*``: the same per CPU
+  second (process time), steadier than wall time on a shared machine.
 
-All three run 4 chains, 500 warmup and 1000 draws (the issue's protocol).
+All run 4 chains, 500 warmup and 1000 draws (the issue's protocol).
 
 Run: .venv/bin/python benchmarks/inference.py   (about 3-5 minutes on 2 loaded cores)
 """
@@ -86,14 +90,15 @@ def min_ess(draws: np.ndarray) -> float:
     return float(min(az.ess(draws[:, :, i], method="bulk") for i in range(draws.shape[2])))
 
 
-def blackjax_hand(logdensity, key, x0):
+def blackjax_hand(logdensity, key, x0, dense: bool = False):
     """Window adaptation + NUTS, vmapped over chains, all in one jitted function:
     (draws, wall seconds, CPU seconds) of the second, compiled run."""
     import blackjax
 
     def chain(k, x):
         k1, k2 = jax.random.split(k)
-        (state, params), _ = blackjax.window_adaptation(blackjax.nuts, logdensity).run(k1, x, WARMUP)
+        adapt = blackjax.window_adaptation(blackjax.nuts, logdensity, is_mass_matrix_diagonal=not dense)
+        (state, params), _ = adapt.run(k1, x, WARMUP)
         kernel = blackjax.nuts(logdensity, **params)
         _, xs = jax.lax.scan(lambda s, kk: (lambda r: (r[0], r[0].position))(kernel.step(kk, s)),
                              state, jax.random.split(k2, SAMPLES))
@@ -141,20 +146,26 @@ def main() -> None:
                             NOISE, seed=3)
     measured = np.loadtxt(folder / "data.csv", delimiter=",", skiprows=1, usecols=(2, 3, 4))
 
-    t0 = time.perf_counter()
+    import physdsl.compile as pc
+
+    pc._COMPILED.clear()  # the data simulation above compiled this structure's simulator
+    t0, c0 = time.perf_counter(), time.process_time()
     model = compile_phys(scene)  # parse, resolve, build the simulator
+    print(f"compile_parse_build_s: {time.perf_counter() - t0:.2f}")
     problem, positions = make_problem(model, jax.random.PRNGKey(0), CHAINS)
     vg = value_and_grad_fn(problem)
     jax.block_until_ready(vg(positions[0]))
     compile_s = time.perf_counter() - t0
     print(f"compile_s: {compile_s:.2f}")
+    print(f"compile_cpu_s: {time.process_time() - c0:.2f}")
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     hand = hand_logdensity(jnp.asarray(measured))
     hand_vg = jax.jit(jax.value_and_grad(hand))
     jax.block_until_ready(hand_vg(positions[0]))
     compile_hand = time.perf_counter() - t0
     print(f"compile_s_hand: {compile_hand:.2f}")
+    print(f"compile_cpu_s_hand: {time.process_time() - c0:.2f}")
     print(f"compile_ratio: {compile_s / compile_hand:.1f}")
     # the flat vector of physdsl is ravel({name: value}) in sorted order: velocity, then drag
     names = sorted(model.unknown_names)
@@ -173,9 +184,10 @@ def main() -> None:
     print(f"grad_time_ratio: {g_phys / g_hand:.2f}")
 
     settings = dict(backend="nuts", chains=CHAINS, warmup=WARMUP, samples=SAMPLES, progress=False)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     model.infer(seed=0, **settings)
     print(f"physdsl_first_run_s: {time.perf_counter() - t0:.2f}")
+    print(f"physdsl_first_run_cpu_s: {time.process_time() - c0:.2f}")
     t0, c0 = time.perf_counter(), time.process_time()
     idata = model.infer(seed=1, **settings)
     t_phys = time.perf_counter() - t0
@@ -194,6 +206,12 @@ def main() -> None:
     print(f"blackjax_hand_run_s: {t_bj:.2f}")
     print(f"blackjax_hand_run_cpu_s: {cpu_bj:.2f}")
     print(f"ess_per_s_blackjax_hand: {ess_bj:.2f}")
+    bjd_draws, t_bjd, cpu_bjd = blackjax_hand(hand, jax.random.PRNGKey(2),
+                                              jnp.asarray(np.stack(xs[:CHAINS])), dense=True)
+    ess_bjd = min_ess(bjd_draws) / t_bjd
+    print(f"blackjax_hand_dense_run_s: {t_bjd:.2f}")
+    print(f"blackjax_hand_dense_run_cpu_s: {cpu_bjd:.2f}")
+    print(f"ess_per_s_blackjax_hand_dense: {ess_bjd:.2f}")
 
     np_draws, t_np, cpu_np = numpyro_hand(jnp.asarray(measured), jax.random.PRNGKey(3))
     ess_np = min_ess(np_draws) / t_np
@@ -206,10 +224,14 @@ def main() -> None:
     print(f"posterior_mean_drag_numpyro: {float(np_draws[..., 3].mean()):.4f}")
     print(f"ess_per_s_ratio: {ess_phys / ess_bj:.3f}")
     print(f"ess_per_s_ratio_vs_numpyro: {ess_phys / ess_np:.3f}")
+    print(f"ess_per_s_ratio_vs_blackjax_hand_dense: {ess_phys / ess_bjd:.3f}")
     # the same ratios per CPU second (less sensitive to other jobs on a shared machine)
-    ess = {k: min_ess(d) for k, d in (("phys", phys_draws), ("bj", bj_draws), ("np", np_draws))}
+    ess = {k: min_ess(d) for k, d in (("phys", phys_draws), ("bj", bj_draws), ("np", np_draws),
+                                        ("bjd", bjd_draws))}
     print(f"ess_per_cpu_s_ratio: {ess['phys'] / cpu_phys / (ess['bj'] / cpu_bj):.3f}")
     print(f"ess_per_cpu_s_ratio_vs_numpyro: {ess['phys'] / cpu_phys / (ess['np'] / cpu_np):.3f}")
+    print(f"ess_per_cpu_s_ratio_vs_blackjax_hand_dense: "
+          f"{ess['phys'] / cpu_phys / (ess['bjd'] / cpu_bjd):.3f}")
 
 
 if __name__ == "__main__":

@@ -67,13 +67,14 @@ def simulated_scene(folder: Path, text: str, truth: dict, times, noise: float, s
     folder.mkdir(parents=True, exist_ok=True)
     scene = folder / "scene.phys"
     scene.write_text(text)
-    write_trajectory_csv(folder / data, times, np.zeros((len(times), 3)))
+    body = observation.split(".")[0]
+    write_trajectory_csv(folder / data, times, np.zeros((len(times), 3)), body)
     from physdsl.compile import compile as compile_phys
 
     model = compile_phys(scene)
     pred = np.asarray(model.predict({k: np.asarray(v) for k, v in truth.items()})[observation])
     noisy = pred + np.random.default_rng(seed).normal(0.0, noise, pred.shape)
-    write_trajectory_csv(folder / data, times, noisy)
+    write_trajectory_csv(folder / data, times, noisy, body)
     return scene
 
 

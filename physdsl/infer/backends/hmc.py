@@ -47,6 +47,7 @@ def _window(settings):
 
 class _BlackjaxHMCFamily(Backend):
     algorithm = None
+    step_jitter = 0.0  # relative half-width of a uniform jitter of the step size per transition
 
     def _extra(self, settings) -> dict:
         return {}
@@ -62,6 +63,9 @@ class _BlackjaxHMCFamily(Backend):
             stages, adapting = shared
             step_size = jnp.where(adapting, astate.step_size, step_size)
             imm = jnp.where(adapting, astate.inverse_mass_matrix, imm)
+            if self.step_jitter:
+                u = jax.random.uniform(jax.random.fold_in(key, 1), minval=-1.0, maxval=1.0)
+                step_size = step_size * (1.0 + self.step_jitter * u)
             state, info = self.algorithm(bind(problem, data), step_size, imm, **extra).step(key, state)
             new = update(astate, (stages[i, 0], stages[i, 1]), state.position, info.acceptance_rate)
             astate = tree_where(adapting, new, astate)
@@ -131,6 +135,10 @@ class HMC(_BlackjaxHMCFamily):
 
     name = "hmc"
     algorithm = blackjax.hmc
+    # a fixed trajectory length can resonate with a period of the posterior (a chain then
+    # zig-zags along one direction and r-hat stays high); jittering the step size by +-20%
+    # per transition breaks it (Neal 2011, section 5.4.2.2)
+    step_jitter = 0.2
 
     def _extra(self, settings):
         return {"num_integration_steps": settings.integration_steps}

@@ -24,7 +24,9 @@ def find_mode(problem, x0, steps: int = 300, memory: int = 10) -> np.ndarray:
     finite and rises enough (Armijo): a rollout that turns NaN past some edge of the
     parameter space (``sqrt`` of a negative drag) only shortens the step. (scipy's L-BFGS-B
     stops at once there, reporting convergence at its starting point.) The first step has
-    unit length; later steps use the curvature pairs, so no scale needs to be known.
+    unit length; later steps use the curvature pairs, so no scale needs to be known. A step
+    along which the log density is not concave clears the pairs (they came from elsewhere:
+    kept, they let the search crawl through such a region with steps of millimetres).
     """
     vg = value_and_grad_fn(problem)
 
@@ -57,6 +59,8 @@ def find_mode(problem, x0, steps: int = 300, memory: int = 10) -> np.ndarray:
         s, y = xn - x, gn - gx
         if s @ y > 1e-12 * np.linalg.norm(s) * np.linalg.norm(y):
             pairs = (pairs + [(s, y)])[-memory:]
+        else:  # no positive curvature along the step (a non-concave region): the stored
+            pairs.clear()  # pairs describe another region; kept, they shrink every later step
         done = fx - fn <= 1e-13 * max(1.0, abs(fx)) or np.max(np.abs(gn)) < 1e-9
         x, fx, gx = xn, fn, gn
         if done:
