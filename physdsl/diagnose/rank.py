@@ -208,47 +208,33 @@ FIT_DRAWS = 64  # Laplace draws per chain: enough for PSIS-LOO and 90% intervals
 
 def fit_with_fallback(model, backend: str, **settings):
     """``model.infer(backend=...)``; where MAP's Laplace step fails (a log density with a kink
-    at the mode, e.g. a contact that switches on, or a flat direction) the posterior is
-    sampled by random-walk Metropolis started at the modes instead, which needs no Hessian and
-    no gradient; ``idata.attrs["fit_note"]`` says so."""
+    at the mode, e.g. a contact that switches on, or a flat direction: LaplaceError, or draws
+    wider than the prior, see ``wider_than_prior``) the posterior is sampled by random-walk
+    Metropolis started at the modes instead, which needs no Hessian and no gradient;
+    ``idata.attrs["fit_note"]`` says so."""
     from ..infer.backends.map import LaplaceError
-
-    try:
-        return model.infer(backend=backend, **settings)
-    except LaplaceError as err:
-        # each transition costs a rollout (on contact scenes the bulk of a fit): a short run
-        settings = {**settings, "warmup": min(settings.get("warmup", 200), 200), "init_steps": 100}
-        idata = model.infer(backend="rmh", **settings)
-        idata.attrs["fit_note"] = (f"Laplace approximation failed ({err.message}); posterior "
-                                   "sampled by random-walk Metropolis from the modes")
-        return idata
-
-
-def quick_fit(model, seed: int = 0):
-    """A fast posterior for comparisons: MAP from two prior draws with a Laplace approximation.
-
-    Where the Laplace step fails (a log density with a kink at the mode, e.g. a contact that
-    switches on: the finite-difference Hessian is not positive definite, or its floored
-    curvature gives draws wider than the prior, see ``wider_than_prior``) the posterior is
-    sampled by random-walk Metropolis started at the modes instead, which needs no Hessian and
-    no gradient; ``idata.attrs["fit_note"]`` says so.
-    """
     from .workflow import wider_than_prior
 
     try:
-        idata = model.infer(backend="map", chains=2, warmup=300, samples=FIT_DRAWS, seed=seed,
-                            progress=False)
-        wide = wider_than_prior(model, idata)
+        idata = model.infer(backend=backend, **settings)
+        wide = wider_than_prior(model, idata) if backend == "map" else []
         if not wide:
             return idata
         why = f"Laplace draws of {', '.join(wide)} wider than the prior"
-    except np.linalg.LinAlgError as err:
-        why = f"Laplace approximation failed ({err})"
+    except LaplaceError as err:
+        why = f"Laplace approximation failed ({err.message})"
     # each transition costs a rollout (on contact scenes the bulk of a fit): a short run
-    idata = model.infer(backend="rmh", chains=2, warmup=200, samples=FIT_DRAWS, seed=seed,
-                        init_steps=100, progress=False)
+    settings = {**settings, "warmup": min(settings.get("warmup", 200), 200), "init_steps": 100}
+    idata = model.infer(backend="rmh", **settings)
     idata.attrs["fit_note"] = f"{why}; posterior sampled by random-walk Metropolis from the modes"
     return idata
+
+
+def quick_fit(model, seed: int = 0):
+    """A fast posterior for comparisons: MAP from two prior draws with a Laplace approximation
+    (random-walk Metropolis where that fails, see ``fit_with_fallback``)."""
+    return fit_with_fallback(model, "map", chains=2, warmup=300, samples=FIT_DRAWS, seed=seed,
+                             progress=False)
 
 
 SAME_DIRECTION = 0.9999  # |cos| between score columns above which two candidates act alike
