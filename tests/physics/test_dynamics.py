@@ -134,3 +134,25 @@ def test_shape_inertia_matches_mujoco(kind, size, mjsize):
                       f'density="700"/></body></worldbody></mujoco>')
     np.testing.assert_allclose(prm["mass"][0], m.body_mass[1], rtol=1e-10)
     np.testing.assert_allclose(np.diag(prm["inertia"][0]), m.body_inertia[1], rtol=1e-10)
+
+
+def test_mesh_inertia_from_trimesh_matches_the_box_formula(tmp_path):
+    """A closed .obj box (0.2 x 0.4 x 0.6 m, its centre off the origin), density 700: trimesh's
+    mass properties give the box's mass, centre of mass and inertia."""
+    from physdsl.scene import Body, Shape
+    lo, hi = np.array([0.1, -0.2, 0.0]), np.array([0.3, 0.2, 0.6])
+    corners = [(x, y, z) for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+    faces = [(1, 2, 4), (1, 4, 3), (5, 7, 8), (5, 8, 6), (1, 5, 6), (1, 6, 2),
+             (3, 4, 8), (3, 8, 7), (1, 3, 7), (1, 7, 5), (2, 6, 8), (2, 8, 4)]
+    path = tmp_path / "box.obj"
+    path.write_text("".join(f"v {x} {y} {z}\n" for x, y, z in corners)
+                    + "".join(f"f {a} {b} {c}\n" for a, b, c in faces))
+    b = Body("b", Shape("mesh", {}, mesh_path=path), density=e(700.0), position=c((0, 0, 0)))
+    s = scene([b])
+    prm = evaluate_params(s, build_model(s), {})
+    size = hi - lo
+    m = 700.0 * np.prod(size)
+    np.testing.assert_allclose(prm["mass"][0], m, rtol=1e-10)
+    np.testing.assert_allclose(prm["com"][0], (lo + hi) / 2, atol=1e-12)
+    Ibox = m / 12 * np.array([size[1]**2 + size[2]**2, size[0]**2 + size[2]**2, size[0]**2 + size[1]**2])
+    np.testing.assert_allclose(np.asarray(prm["inertia"][0]), np.diag(Ibox), rtol=1e-9, atol=1e-12)

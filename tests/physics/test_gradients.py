@@ -191,3 +191,25 @@ def test_contact_gradient_compliant():
         assert np.isfinite(float(g[k]))
         np.testing.assert_allclose(float(g[k]), float(fd), rtol=1e-3)
     assert float(sim.simulate(vals).contact_force.max()) > 0  # it did bounce
+
+
+def test_gradients_are_finite_at_zero_velocity():
+    """Norms at zero (|v| v drag, Magnus, wind at the body's velocity, smoothed joint friction at
+    rest): a ball and a pendulum starting at rest give finite, FD-correct gradients."""
+    ball = Body("ball", Shape("sphere", {"radius": Const(0.1)}), mass=Const(0.5),
+                position=c((0.0, 0.0, 1.0)), velocity=Ref("v0"), angular_velocity=Ref("w0"))
+    bob = Body("bob", Shape("sphere", {"radius": Const(0.05)}), mass=Const(0.3),
+               position=c((1.0, 0.0, 0.5)))
+    hinge = Joint("hinge", "hinge", "world", "bob", axis=c((0, 1, 0)), anchor=c((1.0, 0.0, 1.0)),
+                  initial=Const(0.0), initial_velocity=Ref("om0"))
+    effects = [gravity(), effect("quadratic_drag", "ball", coefficient="cq"),
+               effect("magnus", "ball", coefficient="S"),
+               effect("wind", "ball", velocity=(0.0, 0.0, 0.0), coefficient="cw"),
+               effect("joint_friction", "hinge", torque="Tf", smoothing=0.1)]
+    s = scene([ball, bob], [hinge], effects, dt=5e-3, duration=0.05)
+    values = {"v0": np.zeros(3), "w0": np.zeros(3), "om0": 0.0, "cq": 0.01, "S": 0.002,
+              "cw": 0.01, "Tf": 0.05}
+    compiled = Compiled(s, values)
+    g = compiled.grad(compiled.values)
+    assert all(np.all(np.isfinite(np.asarray(x))) for x in jax.tree.leaves(g))
+    check_fd(compiled, only=("v0", "om0", "Tf"))
