@@ -11,6 +11,7 @@ from __future__ import annotations
 import time
 
 import jax
+import jax.flatten_util
 import jax.numpy as jnp
 import numpy as np
 
@@ -97,5 +98,4 @@ def main():
 
 
 if __name__ == "__main__":
-    import jax.flatten_util  # noqa: F401
     main()

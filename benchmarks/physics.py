@@ -1,10 +1,18 @@
-"""Physics engine benchmark: prints ``name: value`` lines.
+"""Physics engine benchmark: prints ``name: value`` lines, in under 5 minutes on 2 CPU cores.
 
-steps_per_s.<scene> (single rollout, after compile), compile_cpu_s.<scene> and
-grad_compile_cpu_s.<scene> (CPU seconds to compile the rollout and its gradient),
-batch1024_body_steps_per_s.<scene> (vmap over 1024 scenes, moving bodies x steps per second), grad_over_forward.<scene> (reverse-mode
-gradient time / forward time), mujoco_steps_per_s.<scene> (mj_step on the same scene),
-float32 vs float64 steps_per_s for the pendulum, and benchmarks/contact.py's lines if present.
+Per scene (ball, pendulum, chain10 = 10 hinged capsules, balls16 = 16 balls in a box):
+compile_cpu_s / grad_compile_cpu_s / batch_compile_cpu_s (CPU seconds to compile the rollout,
+its gradient and the three vmapped rollouts), steps_per_s (one rollout, after compile),
+grad_over_forward (gradient time / rollout time), batch{1,64,1024}_body_steps_per_s (vmap over
+that many scenes: moving bodies x steps per second; ``batch1024_vmap_chunk`` says where the 1024
+lanes run as lax.map over vmapped chunks), mujoco_steps_per_s and
+mujoco_body_steps_per_s (mj_step on the same scene, one thread), float32_speedup (float64 /
+float32 rollout time, PHYSDSL_FLOAT32=1 in a subprocess) and float32_max_pos_err_m (largest
+body-position difference between the float32 and float64 rollouts over the horizon). Then
+benchmarks/contact.py's lines (LCP solve, implicit / unrolled / finite-difference gradients).
+
+Steps/s do not depend on the horizon, so each scene and batch size has its own, chosen so the
+whole script fits the budget; ``horizon_steps.*`` lines say which.
 Run: .venv/bin/python benchmarks/physics.py
 """
 from __future__ import annotations
@@ -12,11 +20,13 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests" / "physics"))
+sys.path.insert(0, str(HERE))
 
 import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
@@ -27,24 +37,27 @@ import physdsl  # noqa: E402,F401
 from physdsl.expr import Binary, Const, Ref, Vec  # noqa: E402
 from physdsl.physics import build_simulator  # noqa: E402
 from physdsl.scene import Body, Shape  # noqa: E402
-from scenes import c, chain, effect, gravity, pendulum, scene, sphere  # noqa: E402
+from scenes import c, chain, effect, gravity, pendulum, scene  # noqa: E402
 
-STEPS = 200
+import contact  # noqa: E402  (benchmarks/contact.py: the LCP lines and ``timed``)
+
+DT = 1e-3
+BATCHES = (1, 64, 1024)
 
 
-def ball():
+def ball(steps):
     b = Body("ball", Shape("sphere", {"radius": Const(0.11)}), mass=Const(0.43),
              position=Vec((Const(0.0), Const(0.0), Ref("z0"))), velocity=c((6.5, 0.4, 6.0)))
     s = scene([b], effects=[gravity(), effect("quadratic_drag", "ball", coefficient=0.0057)],
-              dt=1e-3, duration=STEPS * 1e-3, integrator="rk4")
+              dt=DT, duration=steps * DT, integrator="rk4")
     xml = ('<mujoco><option timestep="0.001" integrator="RK4" density="1.204"/><worldbody>'
            '<body pos="0 0 1.8"><freejoint/><geom type="sphere" size="0.11" mass="0.43" '
            'fluidshape="ellipsoid" fluidcoef="0.125 0.25 1.5 1 1"/></body></worldbody></mujoco>')
     return s, xml, {"z0": 1.8}, "z0"
 
 
-def pend():
-    s = pendulum(length=0.6, mass=0.3, angle=0.7, duration=STEPS * 1e-3)
+def pend(steps):
+    s = pendulum(length=0.6, mass=0.3, angle=0.7, duration=steps * DT)
     s = s.__class__(**{**s.__dict__, "joints": (s.joints[0].__class__(
         **{**s.joints[0].__dict__, "initial": Ref("th0")}),)})
     xml = ('<mujoco><option timestep="0.001" integrator="RK4"/><worldbody><body pos="0 0 1">'
@@ -53,8 +66,10 @@ def pend():
     return s, xml, {"th0": 0.7}, "th0"
 
 
-def chain10():
-    s = chain(10, link=0.1, mass=0.1, r=0.01, duration=STEPS * 1e-3)
+def chain10(steps):
+    """10 hinged capsules, semi-implicit Euler on both sides (RK4's four tree-dynamics stages
+    take four times as long to compile, which alone would exceed the benchmark's budget)."""
+    s = chain(10, link=0.1, mass=0.1, r=0.01, duration=steps * DT, integrator="semi_implicit_euler")
     s = s.__class__(**{**s.__dict__, "joints": (s.joints[0].__class__(
         **{**s.joints[0].__dict__, "initial": Ref("th0")}),) + s.joints[1:]})
     inner = ""
@@ -62,12 +77,13 @@ def chain10():
         inner += (f'<body pos="0 0 {-0.1 if k else 0}"><joint type="hinge" axis="0 1 0"/>'
                   '<geom type="capsule" fromto="0 0 -0.01 0 0 -0.09" size="0.01" mass="0.1"/>')
     inner += "</body>" * 10
-    xml = f'<mujoco><option timestep="0.001" integrator="RK4"/><worldbody>{inner}</worldbody></mujoco>'
+    xml = f'<mujoco><option timestep="0.001" integrator="Euler"/><worldbody>{inner}</worldbody></mujoco>'
     return s, xml, {"th0": 0.3}, "th0"
 
 
-def balls16():
-    """16 balls dropped into a box (floor + 4 walls), every pair colliding, compliant contact."""
+def balls16(steps):
+    """16 balls dropped into a box (floor + 4 walls), every pair a contact candidate, compliant
+    contact (MuJoCo: its default soft contact)."""
     walls = [("floor", (0, 0, 1), (0, 0, 0)), ("wx0", (1, 0, 0), (-0.3, 0, 0)),
              ("wx1", (-1, 0, 0), (0.3, 0, 0)), ("wy0", (0, 1, 0), (0, -0.3, 0)),
              ("wy1", (0, -1, 0), (0, 0.3, 0))]
@@ -78,7 +94,7 @@ def balls16():
     mj = ""
     for i in range(16):
         x, y = (i % 4 - 1.5) * 0.13, (i // 4 - 1.5) * 0.13
-        z = 0.3 + 0.05 * rng.random()
+        z = 0.06 + 0.05 * rng.random()  # just above the floor: contacts start within the horizon
         names.append(f"b{i}")
         pos = Vec((Const(x), Const(y), Binary("+", Const(z), Ref("dz"))))
         bodies.append(Body(f"b{i}", Shape("sphere", {"radius": Const(0.05)}), mass=Const(0.1),
@@ -88,96 +104,138 @@ def balls16():
     pairs = [(w[0], n) for w in walls for n in names]
     pairs += [(a, b) for i, a in enumerate(names) for b in names[i + 1:]]
     s = scene(bodies, effects=[gravity()], contact_pairs=pairs, contact_model="compliant",
-              dt=1e-3, duration=STEPS * 1e-3)
+              dt=DT, duration=steps * DT)
     planes = "".join(f'<geom type="plane" size="1 1 0.1" pos="{p[0]} {p[1]} {p[2]}" '
                      f'zaxis="{nm[0]} {nm[1]} {nm[2]}"/>' for _, nm, p in walls)
     xml = (f'<mujoco><option timestep="0.001"/><worldbody>{planes}{mj}</worldbody></mujoco>')
     return s, xml, {"dz": 0.0}, "dz"
 
 
-def timed(f, *args, reps=3):
-    jax.block_until_ready(f(*args))  # compile
-    best = np.inf
-    for _ in range(reps):
-        t0 = time.perf_counter()
-        jax.block_until_ready(f(*args))
-        best = min(best, time.perf_counter() - t0)
-    return best
+# scene -> (builder, single-rollout horizon, horizon per batch size), in steps of 1 ms
+SCENES = {
+    "ball": (ball, 2000, {1: 2000, 64: 1000, 1024: 200}),
+    "pendulum": (pend, 2000, {1: 2000, 64: 1000, 1024: 200}),
+    "chain10": (chain10, 500, {1: 500, 64: 100, 1024: 20}),
+    "balls16": (balls16, 200, {1: 200, 64: 20, 1024: 5}),
+}
+# vmap lanes per chunk of the 1024 batch (lax.map over chunks); absent: one vmap over all 1024.
+# chain10 under a single vmap over 1024 lanes did not finish 5 steps in 240 s on XLA CPU, against
+# 4.3 s for 20 steps at 512 lanes (superlinear in lanes: 0.37 s at 128, 1.25 s at 256).
+CHUNK = {"chain10": 256}
+
+
+def compile_cpu_s(f, *args):
+    """(compiled f, CPU seconds to lower and compile it): robust to other load on the machine."""
+    t0 = time.process_time()
+    compiled = f.lower(*args).compile()
+    return compiled, time.process_time() - t0
+
+
+def values_of(vals):
+    return {k: jnp.asarray(v, float) for k, v in vals.items()}
+
+
+def rollout(name, steps):
+    """(simulator, values, key of the varied unknown, MJCF) of scene ``name`` over ``steps``."""
+    s, xml, vals, key = SCENES[name][0](steps)
+    return build_simulator(s), values_of(vals), key, xml
+
+
+def single(name):
+    """Compile and time one rollout of ``name``: (compile CPU s, seconds per rollout, steps,
+    body positions)."""
+    sim, vals, _, _ = rollout(name, SCENES[name][1])
+    fwd, t_c = compile_cpu_s(jax.jit(lambda v: sim.simulate(v).body_pos), vals)
+    return sim, vals, fwd, t_c, contact.timed(fwd, vals, repeat=3)
+
+
+def bench(name):
+    """Every line of scene ``name`` except the float32 ones; returns its float64 rollout."""
+    sim, vals, fwd, t_c, t_f = single(name)
+    nsteps = len(sim.times) - 1
+    moving = sum(1 for j in sim.model.joints if j.nv)
+    print(f"horizon_steps.{name}: {nsteps}")
+    print(f"compile_cpu_s.{name}: {t_c:.1f}")
+    print(f"steps_per_s.{name}: {nsteps / t_f:.0f}", flush=True)
+    loss = jax.grad(lambda v: jnp.sum(sim.simulate(v).body_pos[:, :, 2]))
+    grad, t_gc = compile_cpu_s(jax.jit(loss), vals)
+    print(f"grad_compile_cpu_s.{name}: {t_gc:.1f}")
+    print(f"grad_over_forward.{name}: {contact.timed(grad, vals, repeat=3) / t_f:.2f}", flush=True)
+    t_bc = 0.0
+    for n, steps in SCENES[name][2].items():
+        bsim, bvals, key, _ = rollout(name, steps)
+        xs = bvals[key] + jnp.linspace(0.0, 0.01, n)
+        one = lambda x, bsim=bsim, bvals=bvals, key=key: bsim.simulate({**bvals, key: x}).body_pos  # noqa: E731
+        chunk = CHUNK.get(name) if n == 1024 else None
+        batched = (jax.vmap(one) if chunk is None else
+                   lambda xs, one=one, chunk=chunk: jax.lax.map(one, xs, batch_size=chunk))
+        f, t = compile_cpu_s(jax.jit(batched), xs)
+        if chunk is not None:
+            print(f"batch{n}_vmap_chunk.{name}: {chunk}")
+        t_bc += t
+        t_b = contact.timed(f, xs, repeat=2)
+        print(f"horizon_steps.batch{n}.{name}: {steps}")
+        print(f"batch{n}_body_steps_per_s.{name}: {n * moving * steps / t_b:.0f}", flush=True)
+    print(f"batch_compile_cpu_s.{name}: {t_bc:.1f}")
+    rate = mujoco_rate(rollout(name, 1)[3])
+    print(f"mujoco_steps_per_s.{name}: {rate:.0f}")
+    print(f"mujoco_body_steps_per_s.{name}: {rate * moving:.0f}")
+    print(f"ours_over_mujoco_steps.{name}: {nsteps / t_f / rate:.3f}", flush=True)
+    return t_f, np.asarray(fwd(vals))
 
 
 def mujoco_rate(xml, steps=5000):
+    """mj_step calls per second (best of 3 runs of ``steps`` from the initial state)."""
     m = mujoco.MjModel.from_xml_string(xml)
-    d = mujoco.MjData(m)
-    t0 = time.perf_counter()
-    for _ in range(steps):
-        mujoco.mj_step(m, d)
-    return steps / (time.perf_counter() - t0)
+    best = np.inf
+    for _ in range(3):
+        d = mujoco.MjData(m)
+        t0 = time.perf_counter()
+        for _ in range(steps):
+            mujoco.mj_step(m, d)
+        best = min(best, time.perf_counter() - t0)
+    return steps / best
 
 
-def compile_s(f, *args):
-    """CPU seconds to lower and compile f for args (robust to other load on the machine)."""
-    t0 = time.process_time()
-    f.lower(*args).compile()
-    return time.process_time() - t0
+def float32_main(out_dir: str):
+    """(Run under PHYSDSL_FLOAT32=1.) Time each scene's rollout; save its body positions."""
+    assert jnp.result_type(float) == jnp.float32, "set PHYSDSL_FLOAT32=1"
+    for name in SCENES:
+        _, vals, fwd, _, t_f = single(name)
+        np.save(Path(out_dir) / f"{name}.npy", np.asarray(fwd(vals)))
+        print(f"{name} {t_f!r}", flush=True)
 
 
-def bench(name, builder, batches):
-    s, xml, vals, key = builder()
-    sim = build_simulator(s)
-    vals = {k: jnp.asarray(v, float) for k, v in vals.items()}
-    nsteps = len(sim.times) - 1
-    moving = sum(1 for j in sim.model.joints if j.nv)
-    fwd = jax.jit(lambda v: sim.simulate(v).body_pos)
-    print(f"compile_cpu_s.{name}: {compile_s(fwd, vals):.1f}", flush=True)
-    t_f = timed(fwd, vals)
-    print(f"steps_per_s.{name}: {nsteps / t_f:.0f}", flush=True)
-    grad = jax.jit(jax.grad(lambda v: jnp.sum(sim.simulate(v).body_pos[:, :, 2])))
-    print(f"grad_compile_cpu_s.{name}: {compile_s(grad, vals):.1f}", flush=True)
-    t_g = timed(grad, vals)
-    print(f"grad_over_forward.{name}: {t_g / t_f:.2f}", flush=True)
-    for n in batches:
-        xs = vals[key] + jnp.linspace(0.0, 0.01, n)
-        f = jax.jit(jax.vmap(lambda x: sim.simulate({**vals, key: x}).body_pos))
-        t_b = timed(f, xs, reps=1)
-        print(f"batch{n}_body_steps_per_s.{name}: {n * moving * nsteps / t_b:.0f}", flush=True)
-    print(f"mujoco_steps_per_s.{name}: {mujoco_rate(xml):.0f}", flush=True)
-
-
-def float32_line():
-    """Pendulum steps/s in float32 (separate process: x64 is a process-wide switch)."""
-    env = {**os.environ, "PHYSDSL_FLOAT32": "1"}
-    out = subprocess.run([sys.executable, __file__, "--single-pendulum"], env=env,
-                         capture_output=True, text=True, timeout=300)
-    return out.stdout.strip()
-
-
-def single_pendulum():
-    s, _, vals, _ = pend()
-    sim = build_simulator(s)
-    dt = str(jnp.result_type(float))
-    t = timed(jax.jit(lambda v: sim.simulate(v).body_pos), {k: jnp.asarray(v, float) for k, v in vals.items()})
-    print(f"steps_per_s.{dt}.pendulum: {(len(sim.times) - 1) / t:.0f}")
+def float32_lines(results):
+    """float32_speedup and float32_max_pos_err_m per scene (x64 is a process-wide switch, so
+    float32 runs in a subprocess)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        env = {**os.environ, "PHYSDSL_FLOAT32": "1"}
+        out = subprocess.run([sys.executable, __file__, "--float32", tmp], env=env,
+                             capture_output=True, text=True, timeout=240)
+        if out.returncode:
+            print(f"float32_error: {out.stderr.strip().splitlines()[-1:]}")
+            return
+        for line in out.stdout.splitlines():
+            name, t32 = line.split()
+            t64, pos64 = results[name]
+            pos32 = np.load(Path(tmp) / f"{name}.npy")
+            print(f"float32_speedup.{name}: {t64 / float(t32):.2f}")
+            print(f"float32_max_pos_err_m.{name}: {np.abs(pos32 - pos64).max():.1e}")
 
 
 def main():
-    if "--single-pendulum" in sys.argv:
-        single_pendulum()
+    if "--float32" in sys.argv:
+        float32_main(sys.argv[sys.argv.index("--float32") + 1])
         return
     t0 = time.time()
-    # one batch size per scene (each batch size is a compile of its own): the 1024 lanes
-    bench("ball", ball, (1024,))
-    bench("pendulum", pend, (1024,))
-    bench("chain10", chain10, (1024,))
-    bench("balls16", balls16, (1024,))
-    single_pendulum()
-    print(float32_line())
-    contact = HERE / "contact.py"
-    if contact.exists():
-        out = subprocess.run([sys.executable, str(contact)], capture_output=True, text=True, timeout=300)
-        for line in out.stdout.splitlines():
-            if ":" in line:
-                print(line)
+    print(f"load_avg_1min_start: {os.getloadavg()[0]:.1f}")
+    results = {name: bench(name) for name in SCENES}
+    float32_lines(results)
+    contact.main()
+    print(f"load_avg_1min_end: {os.getloadavg()[0]:.1f}")
     print(f"benchmark_wall_s: {time.time() - t0:.0f}")
+    print(f"benchmark_cpu_s: {time.process_time():.0f}")
 
 
 if __name__ == "__main__":
