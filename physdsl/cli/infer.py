@@ -20,6 +20,8 @@ def register(app: typer.Typer) -> None:
         seed: int = typer.Option(0, "--seed", help="Random seed (runs are reproducible)."),
         target_accept: float = typer.Option(0.8, "--target-accept", min=0.05, max=0.999,
                                             help="Target acceptance rate of HMC/NUTS adaptation."),
+        dense_mass: bool = typer.Option(True, "--dense-mass/--diagonal-mass",
+                                        help="HMC/NUTS metric: dense (default) or diagonal."),
         force: bool = typer.Option(False, "--force", help="Overwrite a non-empty output folder."),
         resume: bool = typer.Option(False, "--resume", help="Continue an interrupted run in OUT."),
     ) -> None:
@@ -32,8 +34,8 @@ def register(app: typer.Typer) -> None:
         get_backend(backend)  # fail fast on an unknown name, before compiling
         model = Model(load(scene))
         idata = model.infer(backend=backend, chains=chains, warmup=warmup, samples=samples,
-                            seed=seed, target_accept=target_accept, outdir=out, force=force,
-                            resume=resume)
+                            seed=seed, target_accept=target_accept, dense_mass=dense_mass,
+                            outdir=out, force=force, resume=resume)
         rows = summary_rows(model, idata)
         typer.echo(format_table(rows))
         for w in warnings_in_words(rows, idata, backend):

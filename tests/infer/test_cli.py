@@ -90,7 +90,8 @@ def test_infer_end_to_end(projectile_scene, tmp_path, cli):
     scene = folder / "scene.phys"
     out = tmp_path / "run"
     code, stdout, err = cli("infer", scene, "-o", out, "--backend", "nuts", "--chains", "2",
-                            "--warmup", "100", "--samples", "200", "--seed", "4")
+                            "--warmup", "100", "--samples", "200", "--seed", "4",
+                            "--diagonal-mass")
     assert code == 0, err
     assert "Traceback" not in err
     assert "linear_drag@ball.coefficient" in stdout and "wrote" in stdout
@@ -125,6 +126,7 @@ def test_infer_end_to_end(projectile_scene, tmp_path, cli):
     assert list(run["data_sha256"].values()) == [data_hash]
     assert run["backend"] == "nuts" and run["seed"] == 4
     assert run["settings"]["chains"] == 2 and run["settings"]["samples"] == 200
+    assert run["settings"]["dense_mass"] is False  # --diagonal-mass reached the sampler
     assert {"physdsl", "jax", "numpyro", "blackjax", "arviz", "python"} <= set(run["versions"])
     assert not (out / "checkpoint.pkl").exists()
     stats = idata.sample_stats
