@@ -11,6 +11,7 @@
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -182,7 +183,19 @@ def combined_loo(idata):
     stacked = np.concatenate([a.reshape(a.shape[0], a.shape[1], -1) for a in arrays], axis=2)
     data = az.from_dict(posterior={"_": np.zeros(stacked.shape[:2])},
                         log_likelihood={"all": stacked})
-    return az.loo(data, pointwise=True)
+    with warnings.catch_warnings():  # said in words by loo_reliability, not as a raw warning
+        warnings.simplefilter("ignore", UserWarning)
+        return az.loo(data, pointwise=True)
+
+
+def loo_reliability(loo) -> str | None:
+    """A sentence when PSIS-LOO is unreliable (Pareto k > 0.7 at some points), else None."""
+    k = np.asarray(loo.pareto_k)
+    bad = int(np.sum(k > 0.7))
+    if not bad:
+        return None
+    return (f"PSIS-LOO is unreliable at {bad} of {k.size} measurements (Pareto k > 0.7): read "
+            "ΔELPD as indicative; the leave-future-out comparison does not rely on it")
 
 
 def lfo_score(model, idata_cut, cutoff: float) -> float:

@@ -30,7 +30,7 @@ def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", cha
            confirm_top: int = 2, echo=print) -> list[Round]:
     """Fit, check, diagnose and extend the scene until it explains the data; returns the rounds."""
     from .candidates import physics_candidates
-    from .rank import combined_loo, diagnose, fit_with_fallback, with_effect
+    from .rank import combined_loo, diagnose, fit_with_fallback, loo_reliability, with_effect
 
     out = io.prepare_outdir(outdir, force=force)
     scene_path = Path(scene_path)
@@ -48,8 +48,11 @@ def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", cha
         if "fit_note" in idata.attrs:
             echo(f"round {k}: {idata.attrs['fit_note']}")
         report = model.check(idata, outdir=rdir / "check")
-        elpd = float(combined_loo(idata).elpd_loo)
+        loo = combined_loo(idata)
+        elpd = float(loo.elpd_loo)
         echo(f"round {k}: residual RMS {report.rms_sigma:.2f}σ, ELPD {elpd:.1f}")
+        if loo_reliability(loo):
+            echo(f"  note: {loo_reliability(loo)}")
         for line in report.text().splitlines()[1:]:
             echo("  " + line)
         if report.rms_sigma <= CONSISTENT_RMS or k == max_rounds:
