@@ -77,9 +77,16 @@ class Diagnosis:
             rms = (f"{r.rms_before:.2f}σ → {r.rms_after:.2f}σ" if r.rms_after is not None else "")
             name = f"{r.effect} on {r.target}" if r.kind == "effect" else f"sensor {r.effect} on {r.target}"
             lfo = f"{r.delta_lfo:+.1f}" if r.delta_lfo is not None else ""
-            lines.append(f"{r.rank:>2} {name:<34} {r.statistic:>9.1f} {r.p_value:>9.2g} {de:>16} "
+            lines.append(f"{r.rank:>2} {name:<34} {r.statistic:>9.1f} {p_value_text(r):>9} {de:>16} "
                          f"{lfo:>8} {rms:>20}")
         return "\n".join(lines)
+
+
+def p_value_text(r: Ranked) -> str:
+    """The p-value for a table; one that underflows shows its order of magnitude from log p."""
+    if r.p_value > 0 or r.log_p == 0.0:
+        return f"{r.p_value:.2g}"
+    return f"<1e{int(np.floor(r.log_p / np.log(10))) + 1}"
 
 
 def _clean(obj):
@@ -423,7 +430,7 @@ def diagnose(model, idata, *, confirm_top: int = 2, alpha: float = 0.05, outdir=
     t2 = time.perf_counter()
     top = ranked[0] if ranked else None
     if winner is not None:
-        verdict = (f"missing effect: {winner.effect} on {winner.target} (score p = {winner.p_value:.2g}; "
+        verdict = (f"missing effect: {winner.effect} on {winner.target} (score p = {p_value_text(winner)}; "
                    f"ΔELPD {winner.delta_elpd:+.1f} ± {winner.delta_elpd_se:.1f}; residual RMS "
                    f"{winner.rms_before:.2f}σ → {winner.rms_after:.2f}σ)")
         rivals = [r for r in ranked if r is not winner and r.confirmed
@@ -440,10 +447,10 @@ def diagnose(model, idata, *, confirm_top: int = 2, alpha: float = 0.05, outdir=
                         "longer would separate them")
     elif top is not None and top.kind == "sensor" and top.p_value < alpha / n_tests:
         verdict = (f"the misfit looks like a sensor fault: {top.effect} on {top.target} "
-                   f"(p = {top.p_value:.2g}), not a missing physical effect")
+                   f"(p = {p_value_text(top)}), not a missing physical effect")
     elif top is not None and confirm_top == 0 and top.p_value < alpha / n_tests:
         verdict = (f"most likely missing (score test only, not confirmed by a refit): "
-                   f"{top.effect} on {top.target} (p = {top.p_value:.2g})")
+                   f"{top.effect} on {top.target} (p = {p_value_text(top)})")
     elif report.consistent:
         verdict = "no missing effect: the residuals are consistent with the noise"
     else:
