@@ -396,9 +396,7 @@ def _snippet(before: str, after: str) -> str:
 def diagnose(model, idata, *, confirm_top: int = 2, alpha: float = 0.05, outdir=None,
              check_report=None) -> Diagnosis:
     """Rank candidate missing effects by evidence; confirm the best by refitting."""
-    from .workflow import check_model
-
-    from .workflow import wider_than_prior
+    from .workflow import check_model, wider_than_prior
 
     t0 = time.perf_counter()
     report = check_report or check_model(model, idata)
@@ -443,8 +441,8 @@ def diagnose(model, idata, *, confirm_top: int = 2, alpha: float = 0.05, outdir=
         if rivals:
             verdict += ("; these data barely tell it from " +
                         ", ".join(f"{r.effect} on {r.target}" for r in rivals) +
-                        " (ΔELPD and ΔLFO within 4): a recording over a wider range of speeds or "
-                        "longer would separate them")
+                        f" (ΔELPD and ΔLFO within {ELPD_TIE:g}): a recording over a wider "
+                        "range of speeds or longer would separate them")
     elif top is not None and top.kind == "sensor" and top.p_value < alpha / n_tests:
         verdict = (f"the misfit looks like a sensor fault: {top.effect} on {top.target} "
                    f"(p = {p_value_text(top)}), not a missing physical effect")

@@ -51,8 +51,9 @@ def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", cha
         loo = combined_loo(idata)
         elpd = float(loo.elpd_loo)
         echo(f"round {k}: residual RMS {report.rms_sigma:.2f}σ, ELPD {elpd:.1f}")
-        if loo_reliability(loo):
-            echo(f"  note: {loo_reliability(loo)}")
+        caveat = loo_reliability(loo)
+        if caveat:
+            echo(f"  note: {caveat}")
         for line in report.text().splitlines()[1:]:
             echo("  " + line)
         if report.rms_sigma <= CONSISTENT_RMS or k == max_rounds:

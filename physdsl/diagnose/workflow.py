@@ -15,15 +15,20 @@ from .residuals import ObservableFit
 MAX_DRAWS = 200
 
 
-def posterior_draws(model, idata, max_draws: int = MAX_DRAWS) -> dict[str, np.ndarray]:
-    """Up to ``max_draws`` joint draws of every unknown: name -> (S, *shape), evenly thinned."""
+def _require_unknowns(model, posterior) -> None:
+    """A UsageError unless ``posterior`` holds draws of every unknown of ``model``."""
     from ..errors import UsageError
 
-    post = idata.posterior
-    missing = [u.name for u in model.unknowns if u.name not in post]
+    missing = [u.name for u in model.unknowns if u.name not in posterior]
     if missing:
         raise UsageError(f"the posterior has no draws of {', '.join(missing)}",
                          hint="give the run folder of `physdsl infer` on this same scene")
+
+
+def posterior_draws(model, idata, max_draws: int = MAX_DRAWS) -> dict[str, np.ndarray]:
+    """Up to ``max_draws`` joint draws of every unknown: name -> (S, *shape), evenly thinned."""
+    post = idata.posterior
+    _require_unknowns(model, post)
     out = {}
     for u in model.unknowns:
         arr = np.asarray(post[u.name].values)
@@ -53,10 +58,7 @@ def point_estimate(model, idata) -> dict[str, np.ndarray]:
                 for v in ll.data_vars)
     total = np.where(np.isfinite(total), total, -np.inf)
     chain, draw = np.unravel_index(int(np.argmax(total)), total.shape)
-    missing = [u.name for u in model.unknowns if u.name not in idata.posterior]
-    if missing:
-        raise UsageError(f"the posterior has no draws of {', '.join(missing)}",
-                         hint="give the run folder of `physdsl infer` on this same scene")
+    _require_unknowns(model, idata.posterior)
     return {u.name: np.asarray(idata.posterior[u.name].values[chain, draw]) for u in model.unknowns}
 
 

@@ -125,7 +125,7 @@ def load_frames(source, times: Sequence[float] | None = None, rate: float | None
     """
     if is_video(source):
         frames, fps = _read_video(Path(str(source)))
-        names = [f"{source} (frame {i})" for i in range(len(frames))]
+        names = [str(VideoFrame(Path(str(source)), i)) for i in range(len(frames))]
         if times is None and rate is None:
             if fps <= 0:
                 raise DataError("the video does not state its frame rate", source,
