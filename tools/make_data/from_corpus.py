@@ -62,10 +62,20 @@ CASES = {
                  ("joint_damping", "hinge", lambda t: t["parameters"]["hinge_damping_N_m_s_per_rad"])),
     "spring_mass": ("spring_mass_01", _spring,
                     ("damper", "block", lambda t: t["parameters"]["spring_damping_N_s_m"])),
-    "billiards": ("billiards_01", _billiards, None),
+    # two hidden effects, material-level: one cloth coefficient on both ball-table pairs
+    "billiards": ("billiards_01", _billiards,
+                  [("contact_friction", "table,*", lambda t: t["parameters"]["table_sliding_friction_mu"]),
+                   ("rolling_resistance", "table,*", lambda t: t["parameters"]["table_rolling_resistance_m"])]),
 }
 STRENGTH = {"quadratic_drag": "coefficient", "restitution": "coefficient", "contact_friction": "coefficient",
-            "joint_damping": "coefficient", "damper": "coefficient"}
+            "joint_damping": "coefficient", "damper": "coefficient", "rolling_resistance": "coefficient"}
+
+
+def _strength_key(eff: str, target: str) -> str:
+    """The unknown holding the effect's strength once diagnose adds it: ``EFFECT@TARGET.coefficient``,
+    or for a material-level target ``FIXED,*`` the shared param ``FIXED_EFFECT``."""
+    fixed, _, rest = target.partition(",")
+    return f"{fixed}_{eff}" if rest == "*" else f"{eff}@{target}.{STRENGTH[eff]}"
 
 
 def _noise(truth: dict) -> dict:
@@ -91,7 +101,7 @@ def main(corpus: Path) -> None:
         full = dict(unknowns)
         if name == "thrown_ball":  # the full example infers Cd, not c
             full["Cd"] = truth["parameters"]["drag_coefficient_Cd"]
-        elif hidden is not None:
+        elif hidden is not None and not isinstance(hidden, list):
             eff, target, value = hidden
             full[f"{eff}@{target}.{STRENGTH[eff]}"] = value(truth)
         common = {"source": src, "noise": _noise(truth), "physical_parameters": truth["parameters"],
@@ -100,12 +110,15 @@ def main(corpus: Path) -> None:
         _write(EXAMPLES / name / "truth.json", {"scene": name, "unknowns": full} | common)
         if hidden is None:
             continue
-        eff, target, value = hidden
+        hidden = hidden if isinstance(hidden, list) else [hidden]
         _copy_data(corpus / case, EXAMPLES / "hidden-effect" / name)
-        params = dict(unknowns) | {f"{eff}@{target}.{STRENGTH[eff]}": value(truth)}
+        params = dict(unknowns) | {_strength_key(eff, target): value(truth) for eff, target, value in hidden}
+        effects = [{"effect": eff, "target": target} for eff, target, _ in hidden]
+        head = effects[0] | {"law": truth["hidden_effect"]["law"]}
+        also = {"also_hidden": effects[1:]} if len(effects) > 1 else {}
         _write(EXAMPLES / "hidden-effect" / name / "truth.json",
-               {"hidden_effect": {"effect": eff, "target": target, "law": truth["hidden_effect"]["law"]},
-                "parameters": params, "naive_unknowns": sorted(unknowns)} | common)
+               {"hidden_effect": head} | also | {"parameters": params, "naive_unknowns": sorted(unknowns)}
+               | common)
 
 
 if __name__ == "__main__":
