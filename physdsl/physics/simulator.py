@@ -16,9 +16,11 @@ import numpy as np
 from jax.flatten_util import ravel_pytree
 
 from ..scene import Scene
+from . import central
 from .integrate import State, kinematics, step
 from .model import Model, build_model
 from .params import evaluate_params
+from .rows import place
 
 
 # at most this many scalar unknowns: derivatives of the trajectory by forward mode (see
@@ -88,36 +90,71 @@ class Simulator:
         C = model.ncon
         s0 = State(prm["q0"].astype(dtype), prm["v0"].astype(dtype), jnp.zeros(C, dtype),
                    jnp.zeros((C, 3), dtype))
+        traj = self._scan(lambda s, t, h: step(model, prm, s, t, h), s0, checkpoint)
+        return traj.q, traj.v, traj.contact_force
+
+    def _translation(self, values, checkpoint: bool = False) -> central.Translation:
+        """Free bodies under central effects (``central.decoupled``): their translation alone."""
+        model = self.model
+        prm = evaluate_params(self.scene, model, values)
+        s0, _ = central.split(model, prm["q0"], prm["v0"])
+        fr = central.frame(model, prm)
+        return self._scan(lambda s, t, h: central.translation_step(model, prm, fr, s, t, h), s0,
+                          checkpoint)
+
+    def _rotation(self, values, checkpoint: bool = False) -> central.Rotation:
+        """Free bodies under central effects: their torque-free rotation alone."""
+        model = self.model
+        prm = evaluate_params(self.scene, model, values)
+        _, s0 = central.split(model, prm["q0"], prm["v0"])
+        return self._scan(lambda s, t, h: central.rotation_step(model, prm, s, h), s0, checkpoint)
+
+    def _scan(self, advance, s0, checkpoint: bool):
+        """``s0`` and the state after each recorded step (pytree of (T+1, ...) leaves), by
+        ``advance(state, t, h)`` over the model's substeps."""
+        model = self.model
         h = model.dt / model.substeps
         ns = model.substeps
 
         def substep(state, k):
-            return step(model, prm, state, k * h, h), None
+            return advance(state, k * h, h), None
 
         def record(state, i):
             if ns == 1:
-                state = step(model, prm, state, i * h, h)
+                state = advance(state, i * h, h)
             else:
                 state, _ = jax.lax.scan(substep, state, i * ns + jnp.arange(ns))
-            return state, (state.q, state.v, state.contact_force)
+            return state, state
 
         if checkpoint:
             record = jax.checkpoint(record)
         _, traj = jax.lax.scan(record, s0, jnp.arange(model.nsteps))
-        first = (s0.q, s0.v, s0.contact_force)
-        return tuple(jnp.concatenate([a[None], b]) for a, b in zip(first, traj))
+        return jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a[None], b]), s0, traj)
 
     def _simulate(self, values) -> Rollout:
         self.trace_count += 1
         model = self.model
         n_in = sum(int(np.size(x)) for x in jax.tree_util.tree_leaves(values)
                    if jnp.issubdtype(jnp.result_type(x), jnp.floating))
-        if 0 < n_in <= FORWARD_MODE_MAX:
-            q, v, cf = forward_mode(lambda x: self._trajectory(x))(values)
-        else:
-            q, v, cf = self._trajectory(values, checkpoint=True)
+
+        def solve(fn):
+            if 0 < n_in <= FORWARD_MODE_MAX:
+                return forward_mode(lambda x: fn(x))(values)
+            return fn(values, checkpoint=True)
+
         prm = evaluate_params(self.scene, model, values)
+        if central.decoupled(model):
+            # each part on its own (a part nobody reads is dead code, derivatives included)
+            tr, rot = solve(self._translation), solve(self._rotation)
+            q, v = central.join(tr, rot)
+            cf = jnp.zeros((q.shape[0], 0), q.dtype)
+        else:
+            q, v, cf = solve(self._trajectory)
         pos, quat, lin, ang, jp, jv = jax.vmap(lambda q, v: observe(model, prm, q, v))(q, v)
+        if central.decoupled(model):  # the same values, read off the translation alone
+            fb = model.free_bodies
+            pos = jax.vmap(lambda x: place(prm["ref_pos"], fb, x))(tr.x)
+            lin = jax.vmap(lambda v: place(jnp.zeros_like(prm["ref_pos"]), fb, v))(tr.v)
         t = jnp.arange(model.nsteps + 1, dtype=q.dtype) * model.dt
         return Rollout(t, q, v, pos, quat, lin, ang, jp, jv, cf)
 

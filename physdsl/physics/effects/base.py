@@ -54,6 +54,10 @@ class Effect:
     acts_on: tuple[str, ...]  # subset of body, world, joint, pair
     stage: str = "force"
     validate: Callable | None = None  # extra static check (scene, use, joint) -> None
+    # the force acts at the centre of mass, with no torque, and depends only on the COM's
+    # position and velocity (``kin.com``, ``kin.vcom``), params, time and gravity: free bodies
+    # under central effects alone translate and rotate independently (physics/central.py)
+    central: bool = False
 
     def check(self, scene, use, bodies, joint) -> None:
         """Reject targets this effect cannot act on (static, at build time)."""
@@ -76,10 +80,11 @@ class Effect:
 EFFECTS: dict[str, Effect] = {}
 
 
-def register(name: str, acts_on: tuple[str, ...], stage: str = "force", validate=None):
+def register(name: str, acts_on: tuple[str, ...], stage: str = "force", validate=None,
+             central: bool = False):
     """Decorator registering ``force`` as the physics of stdlib effect ``name``."""
     def deco(fn):
-        EFFECTS[name] = Effect(name, fn, acts_on, stage, validate)
+        EFFECTS[name] = Effect(name, fn, acts_on, stage, validate, central)
         return fn
     return deco
 

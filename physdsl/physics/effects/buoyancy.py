@@ -5,7 +5,7 @@ from ..rows import take
 from .base import register, wrenches
 
 
-@register("buoyancy", ("body",))
+@register("buoyancy", ("body",), central=True)
 def buoyancy(model, site, p, ctx):
     vol = take(ctx.prm["volume"], site.bodies)
     F = -p["fluid_density"] * vol[:, None] * ctx.gravity[None, :]

@@ -2,6 +2,6 @@
 from .base import com_velocity, register, wrenches
 
 
-@register("linear_drag", ("body",))
+@register("linear_drag", ("body",), central=True)
 def linear_drag(model, site, p, ctx):
     return wrenches(model, ctx, site.bodies, -p["coefficient"] * com_velocity(ctx, site.bodies))

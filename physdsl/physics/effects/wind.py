@@ -8,7 +8,7 @@ from ..spatial import safe_norm
 from .base import com_velocity, register, wrenches
 
 
-@register("wind", ("body",))
+@register("wind", ("body",), central=True)
 def wind(model, site, p, ctx):
     v = com_velocity(ctx, site.bodies)
     rel = p["velocity"][None, :] - v
