@@ -1,5 +1,10 @@
 """Candidate missing effects: every library effect that could act in a scene and is not in it,
-on every target it could act on, plus sensor faults per observation (offset, gain, delay)."""
+on every target it could act on, plus sensor faults per observation (offset, gain, delay).
+
+Pair effects also get material-level candidates: where several contact pairs share one fixed
+body (a table, a floor), the effect on all of them with ONE shared coefficient (a cloth has one
+friction coefficient, not one per ball), targeted ``(table, *)``.
+"""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -9,6 +14,8 @@ from ..scene import EffectDecl, Scene
 # Effects never proposed: they are set up by the user, not discovered.
 NOT_CANDIDATES = {"gravity", "control_force", "spring", "constant_force"}
 SENSOR_KINDS = ("offset", "gain", "delay")
+PAIR_EFFECTS_SKIP = {"damper"}  # acts on pairs too, but only where a spring gives anchors
+ANY = "*"  # second target of a material-level candidate: every pair of the fixed body
 
 
 @dataclass(frozen=True)
@@ -23,6 +30,16 @@ class Candidate:
     @property
     def key(self) -> str:
         return f"{self.name}@{','.join(self.target)}"
+
+    @property
+    def material(self) -> bool:
+        """A pair effect on every pair of one fixed body with one shared coefficient."""
+        return len(self.target) == 2 and self.target[1] == ANY
+
+    @property
+    def shared_param(self) -> str:
+        """Name of the shared coefficient's ``param`` of a material-level candidate."""
+        return f"{self.target[0]}_{self.name}"
 
     def phys_target(self) -> str:
         return f"({', '.join(self.target)})" if len(self.target) == 2 else self.target[0]
@@ -43,7 +60,23 @@ def physics_candidates(scene: Scene) -> list[Candidate]:
         for target, extra in _targets(scene, decl):
             if (decl.name, target) not in present:
                 out.append(Candidate("effect", decl.name, target, extra))
+        if "pair" in decl.acts_on.split("|") and decl.name not in PAIR_EFFECTS_SKIP:
+            for fixed in fixed_bodies(scene):
+                if len(material_pairs(scene, decl.name, fixed)) >= 2:
+                    out.append(Candidate("effect", decl.name, (fixed, ANY)))
     return out
+
+
+def fixed_bodies(scene: Scene) -> list[str]:
+    return [b.name for b in scene.bodies if b.fixed]
+
+
+def material_pairs(scene: Scene, effect: str, fixed: str) -> list[tuple[str, str]]:
+    """The contact pairs of ``fixed`` that lack ``effect``: those a material-level candidate
+    acts on."""
+    present = {frozenset(e.target) for e in scene.effects if e.effect == effect}
+    return [tuple(p) for p in scene.contact_pairs
+            if fixed in p and frozenset(p) not in present]
 
 
 def _targets(scene: Scene, decl: EffectDecl):
@@ -61,7 +94,7 @@ def _targets(scene: Scene, decl: EffectDecl):
         for j in scene.joints:
             if j.kind in ("hinge", "slider"):
                 yield (j.name,), ()
-    if "pair" in kinds and decl.name != "damper":
+    if "pair" in kinds and decl.name not in PAIR_EFFECTS_SKIP:
         for pair in scene.contact_pairs:
             yield tuple(pair), ()
 

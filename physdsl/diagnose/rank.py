@@ -10,6 +10,7 @@
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 import warnings
 from dataclasses import asdict, dataclass, field
@@ -19,9 +20,9 @@ import arviz as az
 import numpy as np
 
 from .. import io
-from ..errors import PhysError
+from ..errors import PhysError, PhysNameError
 from ..syntax import edit, format_source, loads
-from .candidates import Candidate, physics_candidates, sensor_candidates
+from .candidates import Candidate, material_pairs, physics_candidates, sensor_candidates
 from .score import ScoreResult, jacobian, project_out, score_test, sensor_columns
 from .workflow import noise_unknowns, point_estimate, posterior_draws
 
@@ -121,13 +122,27 @@ def strength_name(scene, cand: Candidate) -> str:
     return scene.effect_library[cand.name].strength.name
 
 
-def with_effect(scene, cand: Candidate) -> str:
-    """The scene's text with candidate ``cand`` added, its strength an unknown with the library prior."""
+def with_effect(scene, cand: Candidate, text: str | None = None) -> str:
+    """The scene's text (or ``text``) with candidate ``cand`` added, its strength an unknown with
+    the library prior. A material-level candidate (target ``(table, *)``) declares one
+    ``param TABLE_EFFECT ~ prior`` and adds the effect on every pair of ``table`` that lacks it,
+    each with that param as its strength."""
     decl = scene.effect_library[cand.name]
-    params = {decl.strength.name: prior_text(decl.strength.prior)}
-    params.update(dict(cand.params))
-    return edit.add_effect(scene.source, cand.name, cand.phys_target(), params,
-                           filename=str(scene.path or "<string>"))
+    filename = str(scene.path or "<string>")
+    text = scene.source if text is None else text
+    prior = prior_text(decl.strength.prior)
+    if not cand.material:
+        params = {decl.strength.name: prior, **dict(cand.params)}
+        return edit.add_effect(text, cand.name, cand.phys_target(), params, filename=filename)
+    pairs = material_pairs(scene, cand.name, cand.target[0])
+    if not pairs:
+        raise PhysNameError(f"no contact pair of '{cand.target[0]}' lacks {cand.name}")
+    text = edit.add_param(text, cand.shared_param, prior, filename=filename)
+    for a, b in pairs:
+        text = edit.add_effect(text, cand.name, f"({a}, {b})",
+                               {decl.strength.name: cand.shared_param, **dict(cand.params)},
+                               filename=filename)
+    return text
 
 
 def _load_text(scene, text):
@@ -136,11 +151,19 @@ def _load_text(scene, text):
 
 
 def unknown_key(scene, cand: Candidate) -> str:
+    """The unknown that holds the candidate's strength once it is added (``with_effect``)."""
+    if cand.material:
+        return cand.shared_param
     return f"{cand.key}.{strength_name(scene, cand)}"
 
 
 def score_all(model, idata) -> list[tuple[Candidate, ScoreResult]]:
-    """Score test of every candidate at the fit (``point_estimate``), in one augmented model."""
+    """Score test of every candidate at the fit (``point_estimate``), in one augmented model.
+
+    Per-target candidates are added to the augmented scene at their off values; a
+    material-level candidate's column is the sum of its pairs' columns (the derivative with
+    respect to the one shared coefficient, all pairs at the same off value).
+    """
     from ..compile import Model
 
     scene = model.scene
@@ -148,11 +171,10 @@ def score_all(model, idata) -> list[tuple[Candidate, ScoreResult]]:
     text = scene.source
     usable = []
     for c in cands:
+        if c.material:
+            continue
         try:
-            trial = edit.add_effect(text, c.name, c.phys_target(),
-                                    {**{strength_name(scene, c): prior_text(scene.effect_library[c.name].strength.prior)},
-                                     **dict(c.params)}, filename=str(scene.path or "<string>"))
-            text = trial
+            text = with_effect(scene, c, text)
             usable.append(c)
         except Exception:  # noqa: BLE001 - a candidate the language cannot express is skipped
             continue
@@ -161,26 +183,87 @@ def score_all(model, idata) -> list[tuple[Candidate, ScoreResult]]:
     nuisance = [u.name for u in model.unknowns if u.name not in noise_unknowns(model)]
     tested = [unknown_key(scene, c) for c in usable]
     for c, key in zip(usable, tested):
-        decl = scene.effect_library[c.name]
-        shape = aug.scene.unknown(key).shape
-        values[key] = np.full(shape, decl.strength.off if decl.strength.off is not None else 0.0)
+        values[key] = np.full(aug.scene.unknown(key).shape, tested_value(scene.effect_library[c.name]))
     r, J_theta, J_psi, pred = jacobian(aug, values, nuisance, tested)
-    results = []
     sizes = {k: int(np.prod(aug.scene.unknown(k).shape)) for k in tested}
     offset = 0
-    starts = {}
+    columns = {}
     for k in sorted(tested):  # ravel_pytree orders dict keys
-        starts[k] = offset
+        columns[k] = J_psi[:, offset: offset + sizes[k]]
         offset += sizes[k]
-    for c, key in zip(usable, tested):
-        cols = project_out(J_theta, J_psi[:, starts[key]: starts[key] + sizes[key]])
-        sign = scene.effect_library[c.name].strength.sign if sizes[key] == 1 else 0
-        results.append((c, score_test(c.key, r, cols, sign)))
+    by_key = {c.key: col for c, col in ((c, columns[k]) for c, k in zip(usable, tested))}
+    groups = [(c, by_key[c.key]) for c in usable]
+    for c in cands:
+        if c.material:
+            parts = [Candidate("effect", c.name, p).key for p in material_pairs(scene, c.name, c.target[0])]
+            if all(p in by_key for p in parts) and _expressible(scene, c):
+                groups.append((c, sum(by_key[p] for p in parts)))
+    results = []
+    for c, col in groups:
+        cols = project_out(J_theta, col)
+        sign = scene.effect_library[c.name].strength.sign if col.shape[1] == 1 else 0
+        res = score_test(c.key, r, cols, sign)
+        if prior_sds_needed(scene, c, res) is not None:
+            res = dataclasses.replace(res, p_value=1.0, log_p=0.0)
+        results.append((c, res))
     for c in sensor_candidates(scene):
         cols = project_out(J_theta, sensor_columns(aug, values, c.name, c.target[0], pred))
         results.append((c, score_test(c.key, r, cols, 0)))
     results.sort(key=lambda cr: (cr[1].log_p, -cr[1].statistic))
     return results
+
+
+NUDGE = 1e-4  # one-sided strengths are tested this many prior sds inside the physical side
+
+
+def tested_value(decl) -> float:
+    """Where a candidate's strength is score-tested: its off value, or for a one-sided strength
+    (a sign) just inside the physical side, off + sign * 1e-4 prior sds. At the boundary
+    itself a constraint solver's derivative can vanish: with a friction cone of zero width
+    the LCP's complementarity is degenerate and d(trajectory)/d(mu) is exactly 0 at mu = 0,
+    while at mu = 1e-5 it equals the finite difference. So near the boundary, the columns are
+    the one-sided derivatives the test needs, and the residuals differ from those at off by
+    1e-4 sds of the prior's effect."""
+    p = decl.strength
+    off = p.off if p.off is not None else 0.0
+    if not p.sign or p.prior is None:
+        return off
+    return off + p.sign * NUDGE * prior_sd(p.prior)
+
+
+def prior_sd(prior) -> float:
+    """Standard deviation of a library prior (constant arguments, SI)."""
+    from ..expr import constant_value
+    from ..syntax.dists import find
+
+    args = [np.asarray(constant_value(a)) for a in prior.args]
+    kwargs = {k: np.asarray(constant_value(v)) for k, v in prior.kwargs}
+    return float(np.sqrt(np.max(np.asarray(find(prior.dist)(*args, **kwargs).variance))))
+
+
+IMPLAUSIBLE = 1000.0  # prior sds: a one-step estimate this far out is not a physical effect
+
+
+def prior_sds_needed(scene, cand: Candidate, res: ScoreResult) -> float | None:
+    """How many prior sds the strength would need to explain the misfit (the one-step
+    estimate), when that is beyond ``IMPLAUSIBLE``, else None. Such a candidate barely moves
+    the predictions here (its column is tiny, e.g. rolling resistance on a nearly frictionless
+    table) and only its direction happens to match the residuals: the score statistic, which
+    is blind to scale, would call it significant; it is not proposed (p = 1, with a note)."""
+    p = scene.effect_library[cand.name].strength
+    if res.estimate is None or p.prior is None:
+        return None
+    sds = abs(res.estimate) / prior_sd(p.prior)
+    return sds if sds > IMPLAUSIBLE else None
+
+
+def _expressible(scene, cand: Candidate) -> bool:
+    """Whether ``with_effect`` can write the candidate (its shared param's name is free)."""
+    try:
+        with_effect(scene, cand)
+        return True
+    except PhysError:
+        return False
 
 
 def combined_loo(idata):
@@ -276,6 +359,30 @@ def mark_twins(ranked: list[Ranked], directions: dict) -> None:
             r.same_as = twin
         else:
             seen.append((r.kind, key, d))
+    _material_first(ranked)
+
+
+def _material_first(ranked: list[Ranked]) -> None:
+    """In a group of twins, a material-level candidate (one coefficient for every pair of a
+    table) represents the group: it explains the data alike and is the physically plainer
+    model (a cloth has one friction coefficient; a pair the data cannot see gets it too)."""
+    for rep in [r for r in ranked if not r.same_as]:
+        rep_key = f"{rep.effect}@{rep.target}"
+        group = [r for r in ranked if r.same_as == rep_key]
+        if is_material(rep):
+            continue
+        new = next((r for r in group if is_material(r) and r.effect == rep.effect), None)
+        if new is None:
+            continue
+        new_key = f"{new.effect}@{new.target}"
+        new.same_as = None
+        for r in [rep] + group:
+            if r is not new:
+                r.same_as = new_key
+
+
+def is_material(r: Ranked) -> bool:
+    return r.kind == "effect" and Candidate(r.kind, r.effect, tuple(r.target.split(","))).material
 
 
 def tie_twins(ranked: list[Ranked]) -> list[Ranked]:
@@ -406,9 +513,12 @@ def diagnose(model, idata, *, confirm_top: int = 2, alpha: float = 0.05, outdir=
     ranked, cands = [], {}
     for i, (c, s) in enumerate(scored, start=1):
         cands[c.key] = c
+        sds = prior_sds_needed(model.scene, c, s) if c.kind == "effect" else None
+        note = ("the measurements cannot see this effect" if s.information <= 0 else
+                f"the measurements barely see this effect: explaining the misfit would need a "
+                f"strength {sds:.2g} prior sds from off, so it is not proposed" if sds else "")
         ranked.append(Ranked(i, c.kind, c.name, ",".join(c.target), s.statistic, s.p_value, s.dof,
-                             s.log_p, s.z, s.estimate, note="" if s.information > 0 else
-                             "the measurements cannot see this effect"))
+                             s.log_p, s.z, s.estimate, note=note))
     mark_twins(ranked, {c.key: s.direction for c, s in scored if s.direction is not None})
     for r in ranked:
         if r.same_as:

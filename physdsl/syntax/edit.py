@@ -1,7 +1,7 @@
 """Pure text -> text edits of a .phys source, through the AST and the printer (comments kept).
 
-Used by ``add-effect``, ``refine`` and friends: ``add_effect``, ``replace_value``,
-``remove_item``. Values are given as .phys value text (``"0.3 kg"``, ``"~ half_normal(1 cm)"``).
+Used by ``add-effect``, ``refine`` and friends: ``add_effect``, ``add_param``,
+``replace_value``, ``remove_item``. Values are given as .phys value text (``"0.3 kg"``, ``"~ half_normal(1 cm)"``).
 """
 from __future__ import annotations
 
@@ -45,6 +45,17 @@ def add_effect(text: str, effect: str, target, params: dict[str, str] | None = N
     fields = tuple(_field(k, v) for k, v in (params or {}).items())
     item = ast.EffectItem(effect, _target(target), ast.Block(fields) if fields else None)
     return format_module(_with_scene_items(module, module.scene.items + (item,)), text)
+
+
+def add_param(text: str, name: str, value_text: str, filename: str = "<string>") -> str:
+    """Declare ``param NAME VALUE`` in the scene block, after its last param (first if none)."""
+    module = parse(text, filename)
+    items = list(module.scene.items)
+    if any(isinstance(it, ast.Param) and it.name == name for it in items):
+        raise PhysNameError(f"the scene already has a param '{name}'")
+    last = max((i for i, it in enumerate(items) if isinstance(it, ast.Param)), default=-1)
+    items.insert(last + 1, _param(name, value_text))
+    return format_module(_with_scene_items(module, items), text)
 
 
 def _set_field(block: ast.Block | None, key_path: list[str], value_text: str) -> ast.Block:
