@@ -2,7 +2,8 @@
 velocity step or compliant (penalty) forces, by ``scene.world.contact_model``.
 
 Rows of the contact arrays are the candidates of every pair in ``model.pairs`` order (static
-count K per pair). Friction uses a 4-edge polyhedral cone (+-t1, +-t2) in the LCP model.
+count K per pair). Friction uses a 4-edge polyhedral cone (+-t1, +-t2) in the LCP model; a
+scene without any friction effect has no friction directions at all (F = 0).
 Normals point from body b towards body a, so a positive normal impulse
 pushes a away from b.
 """
@@ -26,7 +27,7 @@ class Contacts(NamedTuple):
     active: jnp.ndarray  # (C,) bool
     J: jnp.ndarray  # (C, 3, nv) relative point-velocity Jacobian (a minus b), world axes
     Jn: jnp.ndarray  # (C, nv)
-    Jt: jnp.ndarray  # (C, 4, nv) along the friction directions t1, t2, -t1, -t2
+    Jt: jnp.ndarray  # (C, 4, nv) along the friction directions t1, t2, -t1, -t2; (C, 0, nv) without friction
     mu: jnp.ndarray  # (C,)
     e: jnp.ndarray  # (C,)
     inv_mass: jnp.ndarray | None = None  # (C,) Jn M^-1 Jn^T in closed form (free bodies only)
@@ -88,8 +89,11 @@ def detect_all(model: Model, prm: dict, kin: Kin) -> Contacts:
         mu = mu.at[rows].set(jnp.broadcast_to(fr[:, None], rows.shape))
         e = e.at[rows].set(jnp.broadcast_to(re[:, None], rows.shape))
     Jn = jnp.einsum("ck,ckn->cn", normal, J)
-    t1, t2 = jax.vmap(tangents)(normal)
-    T = jnp.stack([t1, t2, -t1, -t2], 1)  # (C, 4, 3): polyhedral cone with 4 edges
+    if any(p.friction is not None for p in model.pairs):
+        t1, t2 = jax.vmap(tangents)(normal)
+        T = jnp.stack([t1, t2, -t1, -t2], 1)  # (C, 4, 3): polyhedral cone with 4 edges
+    else:  # no friction anywhere: the LCP keeps its normal rows only
+        T = jnp.zeros((C, 0, 3), normal.dtype)
     Jt = jnp.einsum("cfk,ckn->cfn", T, J)
     return Contacts(dist, normal, active, J, Jn, Jt, mu, e, inv_m)
 
@@ -130,10 +134,10 @@ def compliant_tau(model: Model, con: Contacts, M, v):
 
 
 def lcp_velocity(model: Model, con: Contacts, M, v, v_free, h):
-    """Next velocity from the LCP step, and the normal force (impulse / h) per row."""
+    """Next velocity from the LCP step, the velocity that advances positions (with the
+    time-of-impact correction, see ``contact.step``) and the normal force (impulse / h) per row."""
     from . import contact as cm
 
-    vn_pre = con.Jn @ v
-    v_next, lam_n, _ = cm.solve_lcp_step(M, v_free, con.Jn, con.Jt, con.mu, con.e, vn_pre,
-                                         con.dist, con.active, h)
-    return v_next, lam_n / h
+    out = cm.solve_lcp_step(M, v_free, con.Jn, con.Jt, con.mu, con.e, con.Jn @ v, con.dist,
+                            con.active, h)
+    return out.v, out.v_position, out.lam_n / h

@@ -11,6 +11,7 @@ import warnings
 from typing import NamedTuple
 
 import jax
+import jax.extend
 import jax.numpy as jnp
 import numpy as np
 from jax.flatten_util import ravel_pytree
@@ -75,7 +76,7 @@ class Simulator:
             warnings.warn(f"scene '{scene.name}' has contacts: RK4 falls back to semi-implicit Euler",
                           stacklevel=3)
         self.trace_count = 0
-        self._jit = jax.jit(self._simulate)
+        self._jit = jax.jit(self._simulate, static_argnums=1)
 
     def params(self, values) -> dict:
         """The numeric params pytree for ``values`` (masses, inertia, poses, effects, q0, v0)."""
@@ -131,7 +132,7 @@ class Simulator:
         _, traj = jax.lax.scan(record, s0, jnp.arange(model.nsteps))
         return jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a[None], b]), s0, traj)
 
-    def _simulate(self, values) -> Rollout:
+    def _simulate(self, values, fields=None) -> Rollout:
         self.trace_count += 1
         model = self.model
         n_in = sum(int(np.size(x)) for x in jax.tree_util.tree_leaves(values)
@@ -143,24 +144,36 @@ class Simulator:
             return fn(values, checkpoint=True)
 
         prm = evaluate_params(self.scene, model, values)
+        t = jnp.arange(model.nsteps + 1, dtype=prm["ref_pos"].dtype) * model.dt
         if central.decoupled(model):
-            # each part on its own (a part nobody reads is dead code, derivatives included)
-            tr, rot = solve(self._translation), solve(self._rotation)
-            q, v = central.join(tr, rot)
-            cf = jnp.zeros((q.shape[0], 0), q.dtype)
-        else:
-            q, v, cf = solve(self._trajectory)
-        pos, quat, lin, ang, jp, jv = jax.vmap(lambda q, v: observe(model, prm, q, v))(q, v)
-        if central.decoupled(model):  # the same values, read off the translation alone
+            # each part on its own, the rotation only for a caller that reads it
+            tr = solve(self._translation)
             fb = model.free_bodies
             pos = jax.vmap(lambda x: place(prm["ref_pos"], fb, x))(tr.x)
             lin = jax.vmap(lambda v: place(jnp.zeros_like(prm["ref_pos"]), fb, v))(tr.v)
-        t = jnp.arange(model.nsteps + 1, dtype=q.dtype) * model.dt
-        return Rollout(t, q, v, pos, quat, lin, ang, jp, jv, cf)
+            cf = jnp.zeros((len(t), 0), t.dtype)
+            if fields is not None and set(fields) <= TRANSLATION_FIELDS:
+                return Rollout(t, None, None, pos, None, lin, None, None, None, cf)
+            q, v = central.join(tr, solve(self._rotation))
+        else:
+            q, v, cf = solve(self._trajectory)
+        obs = jax.vmap(lambda q, v: observe(model, prm, q, v))(q, v)
+        if central.decoupled(model):  # the same values, read off the translation alone
+            obs = (pos, obs[1], lin) + obs[3:]
+        return Rollout(t, q, v, *obs, cf)
 
-    def simulate(self, values) -> Rollout:
-        """Roll the scene out from t = 0 to the last recorded time for the unknowns' ``values``."""
-        return self._jit({k: _canonical(v) for k, v in dict(values).items()})
+    def simulate(self, values, fields: tuple[str, ...] | None = None) -> Rollout:
+        """Roll the scene out from t = 0 to the last recorded time for the unknowns' ``values``.
+
+        ``fields``: the Rollout fields the caller reads (default all); others may be None, and
+        what they alone need is then neither traced nor compiled.
+        """
+        return self._jit({k: _canonical(v) for k, v in dict(values).items()},
+                         None if fields is None else tuple(sorted(fields)))
+
+
+# Rollout fields of a decoupled scene (``central.decoupled``) that need no rotation
+TRANSLATION_FIELDS = {"t", "body_pos", "body_vel", "contact_force"}
 
 
 def forward_mode(f):
@@ -170,24 +183,36 @@ def forward_mode(f):
     The Jacobian is one scan carrying the state and its P tangents, which compiles and runs far
     faster than reverse mode through a scan of many small steps (whose backward pass splits into
     hundreds of tiny kernels per step) when P, the number of scalar unknowns, is small.
+    ``f``'s Python is traced once, into a jaxpr that the primal and the Jacobian both evaluate:
+    tracing it again under jvp and vmap would cost several times as much.
     """
-    g = jax.custom_jvp(f)
+    def apply(values):
+        closed, shape = jax.make_jaxpr(f, return_shape=True)(values)
+        run_flat = jax.extend.core.jaxpr_as_fun(closed)
+        tree = jax.tree_util.tree_structure(shape)
 
-    @g.defjvp
-    def rule(primals, tangents):
-        (values,), (dvalues,) = primals, tangents
-        keys = [k for k in values if jnp.issubdtype(jnp.result_type(values[k]), jnp.floating)]
-        flat, unravel = ravel_pytree({k: values[k] for k in keys})
+        def run(values):
+            return jax.tree_util.tree_unflatten(tree, run_flat(*jax.tree_util.tree_leaves(values)))
 
-        def fx(x):
-            return f({**values, **unravel(x)})
+        g = jax.custom_jvp(run)
 
-        basis = jnp.eye(flat.size, dtype=flat.dtype)
-        out, jac = jax.vmap(lambda t: jax.jvp(fx, (flat,), (t,)), out_axes=(None, 0))(basis)
-        dx = ravel_pytree({k: dvalues[k] for k in keys})[0]
-        return out, jax.tree_util.tree_map(lambda j: jnp.tensordot(dx, j, axes=1), jac)
+        @g.defjvp
+        def rule(primals, tangents):
+            (values,), (dvalues,) = primals, tangents
+            keys = [k for k in values if jnp.issubdtype(jnp.result_type(values[k]), jnp.floating)]
+            flat, unravel = ravel_pytree({k: values[k] for k in keys})
 
-    return g
+            def fx(x):
+                return run({**values, **unravel(x)})
+
+            basis = jnp.eye(flat.size, dtype=flat.dtype)
+            out, jac = jax.vmap(lambda t: jax.jvp(fx, (flat,), (t,)), out_axes=(None, 0))(basis)
+            dx = ravel_pytree({k: dvalues[k] for k in keys})[0]
+            return out, jax.tree_util.tree_map(lambda j: jnp.tensordot(dx, j, axes=1), jac)
+
+        return g(values)
+
+    return apply
 
 
 def _canonical(x):

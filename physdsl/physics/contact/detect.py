@@ -260,6 +260,19 @@ PAIRS: dict[tuple[str, str], Callable] = {
 }
 
 
+# Pairs whose candidates exceed what can touch at once keep only the closest few: a box or a
+# cylinder lies on a plane on at most four of its corners or rim points, so the other four are
+# never active and would only enlarge the contact LCP (its cost grows with the cube of the rows).
+KEEP_CLOSEST: dict[tuple[str, str], int] = {("box", "plane"): 4, ("cylinder", "plane"): 4}
+
+
+def _closest(cp: tuple, k: int) -> tuple:
+    """The ``k`` candidates of smallest gap (ties are far from contact, so which one is kept
+    never changes an active contact)."""
+    idx = jax.lax.top_k(-jax.lax.stop_gradient(cp[0]), k)[1]
+    return tuple(x[idx] for x in cp)
+
+
 def contact_count(kind_a: str, kind_b: str) -> int:
     """Static number K of candidates ``detect`` returns for this kind pair."""
     z3, q = jnp.zeros(3), jnp.array([1.0, 0, 0, 0])
@@ -272,9 +285,13 @@ def detect(kind_a: str, kind_b: str, pos_a, quat_a, size_a, pos_b, quat_b, size_
     """Contact candidates between A and B (kinds static strings; see module docstring)."""
     args = [jnp.asarray(x, dtype=float) for x in (pos_a, quat_a, size_a, pos_b, quat_b, size_b)]
     if (kind_a, kind_b) in PAIRS:
-        d, n, pa, pb, valid = PAIRS[kind_a, kind_b](*args)
+        cp = PAIRS[kind_a, kind_b](*args)
+        keep = KEEP_CLOSEST.get((kind_a, kind_b))
+        d, n, pa, pb, valid = _closest(cp, keep) if keep else cp
     elif (kind_b, kind_a) in PAIRS:
-        d, n, pb, pa, valid = PAIRS[kind_b, kind_a](*args[3:], *args[:3])
+        cp = PAIRS[kind_b, kind_a](*args[3:], *args[:3])
+        keep = KEEP_CLOSEST.get((kind_b, kind_a))
+        d, n, pb, pa, valid = _closest(cp, keep) if keep else cp
         n = -n
     else:
         raise ModelError(f"no contact model between a {kind_a} and a {kind_b}",

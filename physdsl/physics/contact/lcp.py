@@ -1,6 +1,7 @@
 """A primal-dual interior-point solver for the LCP  w = A z + q >= 0, z >= 0, z.w = 0.
 
-Fixed iteration budget (jit-friendly) with Mehrotra predictor-corrector centering, and an
+An iteration budget (jit-friendly, with an early exit once converged) with Mehrotra
+predictor-corrector centering, and an
 implicit derivative: ``lcp_solve`` is a ``jax.custom_jvp`` whose tangent rule differentiates
 the complementarity conditions at the solution (Amos & Kolter's OptNet / de Avila Belbute-Peres
 et al.'s LCP engine) instead of unrolling the iterations; reverse mode transposes that rule.
@@ -23,9 +24,14 @@ class IPSettings(NamedTuple):
     floor: smallest centering target z.w/m, relative to the problem's scale; keeps the
         Newton matrix nonsingular on degenerate problems (a pair with z = w = 0) once converged.
     implicit: differentiate implicitly at the solution (True) or by unrolling (False, for checks).
+    tolerance: with ``implicit``, stop early once every complementarity product z_i w_i and
+        every residual of w = A z + q is below it (normalised units): the implicit derivative
+        does not depend on how the solution was reached, and most contact steps converge in
+        a third of the iteration budget.
     """
 
     iterations: int = 30
+    tolerance: float = 1e-13
     step_fraction: float = 0.99
     floor: float = 1e-14
     implicit: bool = True
@@ -49,14 +55,14 @@ def _max_step(x, dx, fraction):
 
 
 def _interior_point(A, q, settings: IPSettings):
-    """Solve the LCP; returns (z, w) in the caller's units. Plain JAX (unrollable)."""
+    """Solve the LCP; returns (z, w) in the caller's units (unrollable when not implicit)."""
     m = q.shape[0]
     a_scale, q_scale = _scales(A, q)
     An, qn = A / a_scale, q / q_scale  # z = zn q_scale / a_scale, w = wn q_scale
     floor = max(settings.floor, 1e-2 * float(jnp.finfo(An.dtype).eps))  # float32: 1.2e-9
 
     def body(_, zw):
-        z, w = zw
+        z, w = zw[:2]
         r = An @ z + qn - w
         mu = jnp.dot(z, w) / m
         # Newton on [A z + q - w; z w - target]: [A -I; W Z][dz; dw] = [-r; rhs]
@@ -80,7 +86,18 @@ def _interior_point(A, q, settings: IPSettings):
         return jnp.where(ok, z_new, z), jnp.where(ok, w_new, w)  # singular Newton matrix: stay
 
     ones = jnp.ones_like(qn)
-    z, w = jax.lax.fori_loop(0, settings.iterations, body, (ones, ones))
+    if not settings.implicit:  # unrolled derivative: a fixed loop reverse mode can run through
+        z, w = jax.lax.fori_loop(0, settings.iterations, body, (ones, ones))
+        return z * q_scale / a_scale, w * q_scale
+
+    def unfinished(state):
+        z, w, i = state
+        gap = jnp.max(z * w)
+        resid = jnp.max(jnp.abs(An @ z + qn - w))
+        return (i < settings.iterations) & ((gap > settings.tolerance) | (resid > settings.tolerance))
+
+    z, w, _ = jax.lax.while_loop(unfinished, lambda s: (*body(None, s), s[2] + 1),
+                                 (ones, ones, jnp.zeros((), jnp.int32)))
     return z * q_scale / a_scale, w * q_scale
 
 

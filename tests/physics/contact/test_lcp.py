@@ -14,7 +14,7 @@ from physdsl.physics.contact import (IPSettings, LCPSettings, build_lcp, lcp_res
 G, H = 9.81, 0.01
 JN_Z = jnp.array([[0.0, 0.0, 1.0]])
 JT_XY = jnp.array([[[1.0, 0, 0], [-1.0, 0, 0], [0, 1.0, 0], [0, -1.0, 0]]])
-step = jax.jit(solve_lcp_step, static_argnums=(10,))
+step = jax.jit(lambda *a: solve_lcp_step(*a)[:3], static_argnums=(10,))
 
 
 def ball_on_plane(m, v_free, mu, e=0.0, vn_pre=0.0, dist=0.0, active=True):
@@ -58,13 +58,53 @@ def test_frictionless_rows_are_inert():
 
 
 def test_elastic_bounce_and_threshold():
+    # the impact is at the start of the step (dist 0): restitution, then a step of gravity
     v, _, _ = ball_on_plane(1.0, [0.0, 0, -2.0 - G * H], mu=0.3, e=1.0, vn_pre=-2.0)
-    np.testing.assert_allclose(v, [0, 0, 2.0], atol=1e-10)
+    np.testing.assert_allclose(v, [0, 0, 2.0 - G * H], atol=1e-10)
     v, _, _ = ball_on_plane(1.0, [0.0, 0, -2.0 - G * H], mu=0.3, e=0.5, vn_pre=-2.0)
-    np.testing.assert_allclose(v, [0, 0, 1.0], atol=1e-10)
+    np.testing.assert_allclose(v, [0, 0, 1.0 - G * H], atol=1e-10)
     slow = -0.5 * restitution_threshold  # below the threshold: no bounce
     v, _, _ = ball_on_plane(1.0, [0.0, 0, slow], mu=0.3, e=1.0, vn_pre=slow)
     np.testing.assert_allclose(v, 0.0, atol=1e-10)
+
+
+def test_impact_within_the_step_is_split_at_the_time_of_impact():
+    # 3 mm above the floor, falling at 1.2 m/s, 10 ms step: contact after tau = 2.5 ms at the
+    # speed of the linear in-step velocity, rebound with e, gravity for the remaining 7.5 ms
+    d, u0, e = 0.003, -1.2 + G * H, 0.8
+    u1 = u0 - G * H
+    tau = d / -u1
+    v_hit = u0 - G * tau
+    expect = -e * v_hit - G * (H - tau)
+    out = solve_lcp_step(jnp.eye(3), jnp.array([0.0, 0, u1]), JN_Z, JT_XY, jnp.array([0.3]),
+                         jnp.array([e]), jnp.array([u0]), jnp.array([d]), jnp.array([True]), H)
+    np.testing.assert_allclose(out.v[2], expect, rtol=1e-10)
+    # positions advance so that the step ends where the split motion puts the ball
+    np.testing.assert_allclose(d + H * out.v_position[2], (H - tau) * expect, atol=1e-12)
+
+
+def test_split_impact_is_continuous_across_step_boundaries():
+    """Dropping from heights that put the impact just before or just after a step boundary
+    gives the same trajectory (to O(g h^2)), so the fit's likelihood has no sawtooth."""
+    @jax.jit
+    def drop(d):
+        def one(state, _):
+            z, v = state
+            u1 = v - G * H
+            out = solve_lcp_step(jnp.eye(3), jnp.array([0.0, 0, u1]), JN_Z, jnp.zeros((1, 0, 3)),
+                                 jnp.zeros(1), jnp.array([0.9]), jnp.array([v]),
+                                 jnp.array([z]), jnp.array([z < 0.01]), H)
+            z = z + H * out.v_position[2]
+            return (z, out.v[2]), z
+        return jax.lax.scan(one, (d, 0.0 * d), None, length=40)[1]
+
+    # the free fall from 0.05 m crosses z = 0 near step 10 (t = 0.101 s)
+    base = drop(0.05)
+    heights = np.linspace(0.0495, 0.0505, 21)
+    finals = np.asarray(jax.vmap(drop)(jnp.asarray(heights))[:, -1])
+    jumps = np.abs(np.diff(finals))
+    assert np.max(jumps) < 5 * np.median(jumps) + 2 * G * H * H  # no step-sized jump
+    assert np.min(base) > -1e-9  # never below the floor
 
 
 def test_penetration_is_pushed_out_and_gaps_may_close():
@@ -72,10 +112,16 @@ def test_penetration_is_pushed_out_and_gaps_may_close():
     v, _, _ = ball_on_plane(1.0, [0, 0, -G * H], mu=0.3, dist=-0.002)
     np.testing.assert_allclose(v[2], beta * 0.002 / H, rtol=1e-9)
     # a speculative contact 1 mm away: the ball may approach at 0.1 m/s but not faster
-    v, _, _ = ball_on_plane(1.0, [0, 0, -0.05], mu=0.3, dist=0.001)
+    v, _, _ = ball_on_plane(1.0, [0, 0, -0.05], mu=0.3, dist=0.001, vn_pre=-0.05)
     np.testing.assert_allclose(v[2], -0.05, atol=1e-10)
-    v, lam_n, _ = ball_on_plane(1.0, [0, 0, -0.5], mu=0.3, dist=0.001)
-    np.testing.assert_allclose(v[2], -0.001 / H, rtol=1e-9)
+    v, lam_n, _ = ball_on_plane(1.0, [0, 0, -0.02], mu=0.3, dist=0.0001, vn_pre=-0.02)
+    np.testing.assert_allclose(v[2], -0.0001 / H, rtol=1e-9)
+    # a perfectly plastic impact within the step stops the ball on the surface
+    out = solve_lcp_step(jnp.eye(3), jnp.array([0.0, 0, -0.5]), JN_Z, JT_XY, jnp.array([0.3]),
+                         jnp.array([0.0]), jnp.array([-0.5]), jnp.array([0.001]),
+                         jnp.array([True]), H)
+    np.testing.assert_allclose(out.v[2], 0.0, atol=1e-10)
+    np.testing.assert_allclose(0.001 + H * out.v_position[2], 0.0, atol=1e-12)
 
 
 def test_inactive_contacts_are_inert():
@@ -101,9 +147,9 @@ def test_inactive_contacts_are_inert():
 
 
 def test_no_contacts():
-    v, lam_n, lam_t = solve_lcp_step(jnp.eye(2), jnp.ones(2), jnp.zeros((0, 2)),
-                                     jnp.zeros((0, 4, 2)), *(jnp.zeros(0),) * 4,
-                                     jnp.zeros(0, bool), H)
+    v, lam_n, lam_t, _ = solve_lcp_step(jnp.eye(2), jnp.ones(2), jnp.zeros((0, 2)),
+                                        jnp.zeros((0, 4, 2)), *(jnp.zeros(0),) * 4,
+                                        jnp.zeros(0, bool), H)
     np.testing.assert_array_equal(v, 1.0)
     assert lam_n.shape == (0,) and lam_t.shape == (0, 4)
 
@@ -113,10 +159,9 @@ def two_balls(v_minus, e=1.0, m=(1.0, 1.0), implicit=True):
     """Head-on collision along x: contact row Jn = [-1, 1] (gap between ball 2 and ball 1)."""
     settings = LCPSettings(solver=IPSettings(implicit=implicit))
     Jn = jnp.array([[-1.0, 1.0]])
-    v, _, _ = solve_lcp_step(jnp.diag(jnp.asarray(m)), v_minus, Jn, jnp.zeros((1, 4, 2)),
-                             jnp.zeros(1), jnp.array([e]), Jn @ v_minus, jnp.zeros(1),
-                             jnp.array([True]), H, settings)
-    return v
+    return solve_lcp_step(jnp.diag(jnp.asarray(m)), v_minus, Jn, jnp.zeros((1, 4, 2)),
+                          jnp.zeros(1), jnp.array([e]), Jn @ v_minus, jnp.zeros(1),
+                          jnp.array([True]), H, settings).v
 
 
 def test_elastic_head_on_collision_swaps_velocities_and_jacobian():
@@ -182,8 +227,8 @@ def loss_fn(implicit):
     def loss(theta, p):
         M, v_free, Jn, Jt, mu, e, vn_pre, dist, active = p
         M = M + theta["dM"]
-        v, lam_n, _ = solve_lcp_step(M, v_free + theta["dv"], Jn, Jt, mu + theta["dmu"],
-                                     e + theta["de"], vn_pre, dist, active, H, settings)
+        v, lam_n, _, _ = solve_lcp_step(M, v_free + theta["dv"], Jn, Jt, mu + theta["dmu"],
+                                        e + theta["de"], vn_pre, dist, active, H, settings)
         return jnp.dot(wv, v) + jnp.dot(wl, lam_n) / H
 
     return loss
@@ -266,7 +311,7 @@ def test_box_resting_on_four_redundant_corners():
     Jn, Jt = box_rows(a, corners)
     M = jnp.diag(jnp.array([m, m, m] + [m * (2 * a) ** 2 / 6] * 3))
     f = jax.jit(lambda vf: solve_lcp_step(M, vf, Jn, Jt, jnp.full(4, 0.4), jnp.zeros(4),
-                                          jnp.zeros(4), jnp.zeros(4), jnp.ones(4, bool), H))
+                                          jnp.zeros(4), jnp.zeros(4), jnp.ones(4, bool), H)[:3])
     jac = jax.jit(jax.jacrev(lambda x: f(x)[0]))
     for vx in (0.0, 0.3):  # resting, and sliding (mu m g h removes mu g h of speed)
         v_free = jnp.array([vx, 0, -G * H, 0, 0, 0])
