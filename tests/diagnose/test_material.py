@@ -218,3 +218,23 @@ def test_shared_friction_outscores_each_pair_and_its_column_is_the_derivative(sh
     fd = score_test("fd", r0, project_out(J_theta, col), 1)
     assert fd.z == pytest.approx(best.z, rel=1e-3)
     assert fd.estimate == pytest.approx(best.estimate, rel=1e-3)
+
+
+def test_a_strength_far_outside_its_prior_is_not_proposed(tmp_path):
+    """A candidate whose one-step estimate lies > 1000 prior sds from off barely moves the
+    predictions (rolling resistance on a nearly frictionless table); a plausible one passes."""
+    from physdsl.diagnose.candidates import Candidate
+    from physdsl.diagnose.rank import IMPLAUSIBLE, prior_sd, prior_sds_needed
+    from physdsl.diagnose.score import ScoreResult
+
+    scene = _scene(tmp_path)
+    cand = Candidate("effect", "rolling_resistance", ("floor", "a"))
+    sd = prior_sd(scene.effect_library["rolling_resistance"].strength.prior)
+    assert sd == pytest.approx(1e-3 * np.sqrt(1 - 2 / np.pi))  # half_normal(1 mm)
+
+    def res(est):
+        return ScoreResult("k", 100.0, 10.0, 1, 1e-23, 1.0, est, -52.0)
+
+    assert prior_sds_needed(scene, cand, res(5 * sd)) is None
+    assert prior_sds_needed(scene, cand, res(2 * IMPLAUSIBLE * sd)) == pytest.approx(2 * IMPLAUSIBLE)
+    assert prior_sds_needed(scene, Candidate("effect", "wind", ("a",)), res(None)) is None
