@@ -185,6 +185,9 @@ class Model:
         self.observed = tuple(self._prepare(o) for o in scene.observations
                               if o.quantity in trajectory.QUANTITIES)
         self.images = tuple(o for o in scene.observations if o.quantity == "image")
+        # the rollout fields the likelihood reads (all when images are rendered from it)
+        self.rollout_fields = None if self.images else tuple(sorted(
+            {"t"} | {trajectory.QUANTITIES[o.obs.quantity][0] for o in self.observed}))
 
     # -- pieces -------------------------------------------------------------------------
     def _prepare(self, obs: Observation) -> ObservedTrajectory:
@@ -213,7 +216,8 @@ class Model:
 
     def predict(self, values, rollout=None, data=None):
         """Noise-free predictions of every trajectory observation: name -> (N, D)."""
-        rollout = self.simulate(values) if rollout is None else rollout
+        if rollout is None:
+            rollout = self.simulator.simulate(values, self.rollout_fields)
         data = self.data if data is None else data
         return {o.obs.name: trajectory.predict(rollout, self.simulator, o.obs, _interp(data[o.obs.name]))
                 for o in self.observed}
@@ -262,7 +266,7 @@ class Model:
         """
         data = self.data if data is None else data
         values = self.prior_values()
-        rollout = self.simulate(values)
+        rollout = self.simulator.simulate(values, self.rollout_fields)
         for o in self.observed:
             d = data[o.obs.name]
             pred = trajectory.predict(rollout, self.simulator, o.obs, _interp(d))

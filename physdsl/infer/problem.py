@@ -39,15 +39,21 @@ def _build_problem(model) -> Problem:
                              hint="give them a value, or fit shape from images with "
                                   "physdsl.render.inverse (Metropolis-within-Gibbs)")
     logdensity, to_constrained, dim = model.cached("problem", lambda: _functions(model))
-    data = jax.tree_util.tree_map(jnp.asarray, model.data)
+    data = jax.device_put(model.data)  # (jnp.asarray would compile a conversion per array)
     return Problem(logdensity, to_constrained, dim, model, data, model.compiled.cache)
 
 
 def _functions(model):
     """(log density (x, data), to_constrained (x, data), dim) of ``model``'s structure."""
-    with numpyro.handlers.seed(rng_seed=0):
-        draw = model.prior_values()
-    flat, unravel = ravel_pytree(unconstrain_fn(model.prior_values, (), {}, draw))
+    def unconstrained_draw(key):
+        with numpyro.handlers.seed(rng_seed=key):
+            draw = model.prior_values()
+        return unconstrain_fn(model.prior_values, (), {}, draw)
+
+    # only the layout is needed: shapes by abstract evaluation (running the prior eagerly, or
+    # even making a key, would compile each of its operations on its own)
+    layout = jax.eval_shape(unconstrained_draw, jax.ShapeDtypeStruct((2,), jnp.uint32))
+    unravel, dim = unraveler(layout)
 
     def logdensity(x, data):
         return -potential_energy(model.numpyro_model, (data,), {}, unravel(x))
@@ -55,7 +61,22 @@ def _functions(model):
     def to_constrained(x, data):
         return constrain_fn(model.numpyro_model, (data,), {}, unravel(x), return_deterministic=True)
 
-    return safe_logdensity(logdensity), to_constrained, int(flat.size)
+    return safe_logdensity(logdensity), to_constrained, dim
+
+
+def unraveler(layout):
+    """(unravel, size) for pytrees shaped as ``layout`` (of ShapeDtypeStructs): the inverse of
+    ``ravel_pytree`` (same leaf order), made without running anything."""
+    leaves, tree = jax.tree_util.tree_flatten(layout)
+    sizes = [int(np.prod(leaf.shape)) for leaf in leaves]
+    cuts = np.cumsum(sizes)[:-1].tolist()
+
+    def unravel(x):
+        parts = jnp.split(x, cuts) if cuts else [x]
+        return jax.tree_util.tree_unflatten(
+            tree, [p.reshape(leaf.shape).astype(leaf.dtype) for p, leaf in zip(parts, leaves)])
+
+    return unravel, sum(sizes)
 
 
 def prior_draws_unconstrained(problem: Problem, key, n: int) -> np.ndarray:
