@@ -61,8 +61,10 @@ class Backend:
     name: str = ""
     uses_gradient: bool = True
 
-    def warmup(self, problem: Problem, positions: jax.Array, key, settings: Settings):
-        """Tune on ``positions`` (chains, dim); return (states, params, info dict)."""
+    def warmup(self, problem: Problem, positions: jax.Array, key, settings: Settings,
+               on_block=None):
+        """Tune on ``positions`` (chains, dim); return (states, params, info dict).
+        ``on_block(m)``: called after each block of ``m`` warmup transitions (progress)."""
         raise NotImplementedError
 
     def sample(self, problem: Problem, states, params, key, n: int, settings: Settings):

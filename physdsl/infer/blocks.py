@@ -43,10 +43,12 @@ def block_runner(problem: Problem, key, transition, length: int):
     return cached(problem, ("block", key, length), build)
 
 
-def run_blocks(run, problem: Problem, key, carries, n: int, length: int, shared_of=None):
+def run_blocks(run, problem: Problem, key, carries, n: int, length: int, shared_of=None,
+               on_block=None):
     """Advance by ``n`` transitions in calls of at most ``length``; block ``b`` uses
     ``fold_in(key, b)`` split over chains and ``shared_of(start, m)`` (its first transition's
-    index and count). Returns (carries, outs of every transition, leaves (chains, n, ...))."""
+    index and count); ``on_block(m)`` is called once each block's results are on the host (a
+    progress bar). Returns (carries, outs of every transition, leaves (chains, n, ...))."""
     chains = jax.tree_util.tree_leaves(carries)[0].shape[0]
     outs = []
     for b, start in enumerate(range(0, n, length)):
@@ -55,6 +57,8 @@ def run_blocks(run, problem: Problem, key, carries, n: int, length: int, shared_
         shared = shared_of(start, m) if shared_of is not None else ()
         carries, out = run(problem.data, keys, carries, shared, m)
         outs.append(jax.tree_util.tree_map(lambda a: np.asarray(a[:, :m]), out))
+        if on_block is not None:
+            on_block(m)
     if not outs:
         return carries, None
     return carries, jax.tree_util.tree_map(lambda *a: np.concatenate(a, axis=1), *outs)

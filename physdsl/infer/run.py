@@ -49,9 +49,11 @@ def infer(model, backend: str = "nuts", settings: Settings | None = None, outdir
     with _graceful_termination():
         if ckpt is None:
             with stages.stage("warmup", total=settings.warmup) as st:
-                states, params, warm_info = algo.warmup(problem, positions, k_warm, settings)
+                states, params, warm_info = algo.warmup(problem, positions, k_warm, settings,
+                                                        on_block=st.advance)
                 jax.block_until_ready(states)
-                st.advance(settings.warmup)
+                if st.count < settings.warmup:  # a backend without blocks (map)
+                    st.advance(settings.warmup - st.count)
             ckpt = {"fingerprint": fingerprint, "states": _np(states), "params": _np(params),
                     "warm_info": _np(warm_info), "draws": [], "stats": []}
             _save_checkpoint(ckpt_path, ckpt)

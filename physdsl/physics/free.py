@@ -82,5 +82,13 @@ def free_mass_matrix(model: Model, prm: dict, kin: Kin):
 
 
 def free_inverse_inertia(model: Model, inertia):
-    """Inverse body-frame inertias (nF, 3, 3) of the free bodies (computed once per rollout)."""
-    return jnp.linalg.inv(take(inertia, model.free_bodies))
+    """Inverse body-frame inertias (nF, 3, 3) of the free bodies (computed once per rollout).
+
+    By cofactors (rows a, b, c: inverse = [b x c, c x a, a x b]^T / det): a few elementwise
+    operations, where ``jnp.linalg.inv`` traces and compiles an LU factorisation and solves.
+    """
+    m = take(inertia, model.free_bodies)
+    a, b, c = m[:, 0], m[:, 1], m[:, 2]
+    cof = jnp.stack([jnp.cross(b, c), jnp.cross(c, a), jnp.cross(a, b)], axis=-1)
+    det = jnp.sum(a * cof[:, :, 0], axis=-1)
+    return cof / det[:, None, None]

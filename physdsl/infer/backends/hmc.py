@@ -74,7 +74,7 @@ class _BlackjaxHMCFamily(Backend):
         key = (self.name, tuple(sorted(extra.items())), settings.target_accept, settings.dense_mass)
         return block_runner(problem, key, transition, settings.block)
 
-    def warmup(self, problem, positions, key, settings):
+    def warmup(self, problem, positions, key, settings, on_block=None):
         init, _, final = _window(settings)
         run = self._runner(problem, settings)
         positions = jnp.asarray(positions)
@@ -90,7 +90,8 @@ class _BlackjaxHMCFamily(Backend):
             stages[:m] = schedule[start:start + m]
             return jnp.asarray(stages), jnp.asarray(True)
 
-        (states, astates, _), _ = run_blocks(run, problem, key, carries, n, settings.block, shared)
+        (states, astates, _), _ = run_blocks(run, problem, key, carries, n, settings.block, shared,
+                                             on_block)
         step_size, inverse_mass_matrix = jax.vmap(final)(astates)
         params = {"step_size": step_size, "inverse_mass_matrix": inverse_mass_matrix}
         return states, params, {"step_size": step_size}

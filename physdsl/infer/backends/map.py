@@ -128,8 +128,8 @@ def laplace_sqrt(problem, mode) -> np.ndarray:
 class MAP(Backend):
     name = "map"
 
-    def warmup(self, problem, positions, key, settings):
-        steps = max(settings.warmup, 50)
+    def warmup(self, problem, positions, key, settings, on_block=None):
+        steps = max(settings.warmup, 50)  # one optimisation, no blocks: the caller's bar jumps
         modes = find_modes(problem, positions, steps)
         chols = np.stack([laplace_sqrt(problem, m) for m in np.asarray(modes)])
         vg = value_and_grad_fn(problem)

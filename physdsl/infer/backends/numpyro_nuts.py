@@ -59,7 +59,7 @@ def _runner(problem, settings):
 class NumpyroNUTS(Backend):
     name = "numpyro-nuts"
 
-    def warmup(self, problem, positions, key, settings):
+    def warmup(self, problem, positions, key, settings, on_block=None):
         init, _ = _kernels(problem, settings)
         vg = value_and_grad_fn(problem)
         states = []
@@ -68,7 +68,7 @@ class NumpyroNUTS(Backend):
             states.append(init(x, -v, -g, k, problem.data))
         states = jax.tree_util.tree_map(lambda *a: jnp.stack(a), *states)
         states, _ = run_blocks(_runner(problem, settings), problem, key, states, settings.warmup,
-                               settings.block)
+                               settings.block, on_block=on_block)
         return states, {}, {"step_size": states.adapt_state.step_size}
 
     def sample(self, problem, states, params, key, n, settings):

@@ -64,7 +64,7 @@ class RMH(Backend):
     def _runner(self, problem, settings):
         return block_runner(problem, "rmh", _transition(problem), settings.block)
 
-    def warmup(self, problem, positions, key, settings):
+    def warmup(self, problem, positions, key, settings, on_block=None):
         positions = jnp.asarray(positions)
         chains, dim = positions.shape
         vg = value_and_grad_fn(problem)  # compiled already for the starts
@@ -73,7 +73,7 @@ class RMH(Backend):
         carries = (states, moments, jax.vmap(_sigma)(moments[0], moments[2]))
         (states, _, sigma), _ = run_blocks(
             self._runner(problem, settings), problem, key, carries, max(settings.warmup, 1),
-            settings.block, lambda start, m: (jnp.asarray(start), jnp.asarray(True)))
+            settings.block, lambda start, m: (jnp.asarray(start), jnp.asarray(True)), on_block)
         return states, {"sigma": sigma}, {"proposal_sigma": sigma}
 
     def sample(self, problem, states, params, key, n, settings):
