@@ -33,10 +33,23 @@ class Contacts(NamedTuple):
     inv_mass: jnp.ndarray | None = None  # (C,) Jn M^-1 Jn^T in closed form (free bodies only)
 
 
-def tangents(n):
-    """Two unit tangents orthogonal to unit normal n (smooth away from the switch plane)."""
+SLIP_ALIGN = 1e-3  # m/s: slip speeds well above this turn the friction pyramid onto the slip
+
+
+def tangents(n, slip=None):
+    """Two unit tangents orthogonal to unit normal n (smooth away from the switch plane).
+
+    With ``slip`` (the contact's relative velocity), t1 turns towards its tangential part: the
+    4-edge pyramid then has an edge exactly against the sliding direction, so sliding friction
+    is mu N opposite the slip in any direction (a fixed pyramid brakes a diagonal slide by up to
+    sqrt(2) mu N and bends it towards an edge). The blend with the fixed tangent is continuous
+    and leaves stick (slip well below ``SLIP_ALIGN``) on the fixed pyramid.
+    """
     a = jnp.where(jnp.abs(n[0]) < 0.9, jnp.array([1.0, 0.0, 0.0]), jnp.array([0.0, 1.0, 0.0]))
     t1 = normalize(jnp.cross(n, a))
+    if slip is not None:
+        st = slip - jnp.dot(slip, n) * n
+        t1 = normalize(st + SLIP_ALIGN * t1)
     return t1, jnp.cross(n, t1)
 
 
@@ -46,8 +59,9 @@ def _point_jac(kin: Kin, bodies, points):
     return J[:, None, 3:] - jnp.einsum("pkij,pjn->pkin", skew(points), J[:, :3])
 
 
-def detect_all(model: Model, prm: dict, kin: Kin) -> Contacts:
-    """Contact candidates of every pair with their Jacobians and coefficients.
+def detect_all(model: Model, prm: dict, kin: Kin, v=None) -> Contacts:
+    """Contact candidates of every pair with their Jacobians and coefficients; with the joint
+    velocity ``v``, friction pyramids are aligned with each contact's slip (``tangents``).
 
     Pairs of the same shape kinds are detected together (vmap), so the traced graph grows with
     the number of kind combinations, not with the number of pairs.
@@ -90,7 +104,10 @@ def detect_all(model: Model, prm: dict, kin: Kin) -> Contacts:
         e = e.at[rows].set(jnp.broadcast_to(re[:, None], rows.shape))
     Jn = jnp.einsum("ck,ckn->cn", normal, J)
     if any(p.friction is not None for p in model.pairs):
-        t1, t2 = jax.vmap(tangents)(normal)
+        if v is None:
+            t1, t2 = jax.vmap(tangents)(normal)
+        else:
+            t1, t2 = jax.vmap(tangents)(normal, jnp.einsum("ckn,n->ck", J, v))
         T = jnp.stack([t1, t2, -t1, -t2], 1)  # (C, 4, 3): polyhedral cone with 4 edges
     else:  # no friction anywhere: the LCP keeps its normal rows only
         T = jnp.zeros((C, 0, 3), normal.dtype)

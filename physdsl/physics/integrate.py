@@ -102,7 +102,7 @@ def _lcp_step(model, prm, state, t, h):
     kin = kinematics(model, prm, q, v, with_jac=True)
     load = applied_load(model, prm, kin, state, t, t)
     v_free = v + h * accel(model, prm, kin, load)
-    con = cs.detect_all(model, prm, kin)
+    con = cs.detect_all(model, prm, kin, v)
 
     def contact(_):
         return cs.lcp_velocity(model, con, joint_mass_matrix(model, prm, kin), v, v_free, h)
