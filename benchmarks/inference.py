@@ -24,6 +24,7 @@ numpyro program. All run in this one process on the same data and initial positi
   default), ``ess_per_s_numpyro`` (numpyro ``MCMC`` + ``NUTS`` on the hand-written numpyro
   model, second run; its driver recompiles on every run, which is part of its cost); ESS is
   arviz's bulk ESS, minimum over the parameters; ``rhat_max_*``: the largest r-hat;
+  ``leapfrog_per_draw_*``: mean leapfrog steps (gradients) per draw while sampling;
 - ``ess_per_s_ratio`` (physdsl over hand-written blackjax), ``ess_per_s_ratio_vs_numpyro``,
   ``ess_per_s_ratio_vs_blackjax_hand_dense``; ``ess_per_cpu_s_ratio*``: the same per CPU
   second (process time), steadier than wall time on a shared machine;
@@ -147,15 +148,19 @@ def blackjax_hand(logdensity, key, x0, dense: bool = False):
         adapt = blackjax.window_adaptation(blackjax.nuts, logdensity, is_mass_matrix_diagonal=not dense)
         (state, params), _ = adapt.run(k1, x, WARMUP)
         kernel = blackjax.nuts(logdensity, **params)
-        _, xs = jax.lax.scan(lambda s, kk: (lambda r: (r[0], r[0].position))(kernel.step(kk, s)),
-                             state, jax.random.split(k2, SAMPLES))
-        return xs
+
+        def one(s, kk):
+            s, info = kernel.step(kk, s)
+            return s, (s.position, info.num_integration_steps)
+        return jax.lax.scan(one, state, jax.random.split(k2, SAMPLES))[1]
 
     run = jax.jit(jax.vmap(chain))
     keys = jax.random.split(key, CHAINS)
     jax.block_until_ready(run(keys, x0))  # compile
     t0, c0 = time.perf_counter(), time.process_time()
-    draws = jax.block_until_ready(run(jax.random.split(jax.random.fold_in(key, 1), CHAINS), x0))
+    draws, steps = jax.block_until_ready(run(jax.random.split(jax.random.fold_in(key, 1), CHAINS),
+                                             x0))
+    print(f"leapfrog_per_draw_blackjax_hand{'_dense' if dense else ''}: {float(np.mean(steps)):.2f}")
     return constrained(np.asarray(draws)), time.perf_counter() - t0, time.process_time() - c0
 
 
@@ -174,10 +179,11 @@ def numpyro_hand(measured, key):
 
     mcmc = MCMC(NUTS(model), num_warmup=WARMUP, num_samples=SAMPLES, num_chains=CHAINS,
                 chain_method="vectorized", progress_bar=False)
-    mcmc.run(key)  # compile
+    mcmc.run(key, extra_fields=("num_steps",))  # compile
     t0, c0 = time.perf_counter(), time.process_time()
-    mcmc.run(jax.random.fold_in(key, 1))
+    mcmc.run(jax.random.fold_in(key, 1), extra_fields=("num_steps",))
     seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
+    print(f"leapfrog_per_draw_numpyro: {float(np.mean(mcmc.get_extra_fields()['num_steps'])):.2f}")
     s = mcmc.get_samples(group_by_chain=True)
     draws = np.concatenate([np.asarray(s["s"])[..., None], np.asarray(s["v0"]),
                             np.asarray(s["k"])[..., None]], axis=2)
@@ -251,6 +257,7 @@ def main() -> None:
                                         post["ball.velocity"].values,
                                         post["drag_ratio"].values[..., None]], axis=2)}
     seconds = {"physdsl": (t_phys, cpu_phys)}
+    print(f"leapfrog_per_draw_physdsl: {float(idata.sample_stats['n_steps'].mean()):.2f}")
     print(f"physdsl_run_s: {t_phys:.2f}")
     print(f"physdsl_run_cpu_s: {cpu_phys:.2f}")
 

@@ -2,8 +2,11 @@
 
 The static Model is built once; each call evaluates the params from ``values`` inside the
 traced function, scans ``step`` over the recorded times and reads body and joint observables
-from the states. Derivatives of the trajectory use forward mode for few unknowns
-(``forward_mode``), else reverse mode with ``jax.checkpoint`` on each step (O(T) memory).
+from the states. Free bodies under central effects alone (``central.decoupled``) scan their
+translation and rotation separately, and a caller that names the fields it reads
+(``simulate(values, fields)``) gets no rotation it does not read. Derivatives of the
+trajectory use forward mode for few unknowns (``forward_mode``), else reverse mode with
+``jax.checkpoint`` on each step (O(T) memory).
 """
 from __future__ import annotations
 
