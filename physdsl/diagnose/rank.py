@@ -333,11 +333,33 @@ def fit_with_fallback(model, backend: str, **settings):
     return idata
 
 
-def quick_fit(model, seed: int = 0):
+def quick_fit(model, seed: int = 0, start: dict | None = None):
     """A fast posterior for comparisons: MAP from two prior draws with a Laplace approximation
-    (random-walk Metropolis where that fails, see ``fit_with_fallback``)."""
+    (random-walk Metropolis where that fails, see ``fit_with_fallback``); with ``start``
+    (constrained values by name) the first optimisation starts there instead."""
+    start = tuple((k, np.asarray(v, dtype=float).tolist()) for k, v in (start or {}).items())
     return fit_with_fallback(model, "map", chains=2, warmup=300, samples=FIT_DRAWS, seed=seed,
-                             progress=False)
+                             progress=False, start=start)
+
+
+def refit_start(model, idata, cand: Candidate, estimate: float | None) -> dict:
+    """Where a refit with ``cand`` added starts: the fit without it, and the candidate's strength
+    at its off value moved by the score test's one-step estimate (kept on the physical side).
+
+    The model with the effect nests the one without, so this start is at least as good as the
+    smaller model's fit; a start drawn from the prior can instead land in another basin (a
+    block given a friction coefficient that makes it stick cannot feel a change of mu).
+    """
+    decl = model.scene.effect_library[cand.name].strength
+    off = np.asarray(decl.off if decl.off is not None else 0.0, dtype=float)
+    start = dict(point_estimate(model, idata))
+    if off.ndim:  # a vector strength (wind): its prior draws the start
+        return start
+    step = float(estimate) if estimate is not None and np.isfinite(estimate) else 0.0
+    if decl.sign:  # one-sided: at least a hair inside the physical side
+        step = decl.sign * max(decl.sign * step, 1e-3 * max(abs(float(off)), 1.0))
+    start[unknown_key(model.scene, cand)] = float(off) + step
+    return start
 
 
 SAME_DIRECTION = 0.9999  # |cos| between score columns above which two candidates act alike
@@ -437,21 +459,24 @@ def confirm(model, idata, ranked: list[Ranked], cands: dict, k: int, base_rms: f
             break
         done += 1
         try:
-            _refit(model, r, cands[r.effect + "@" + r.target], base_loo, base_lfo, cutoff, base_rms)
+            cand = cands[r.effect + "@" + r.target]
+            _refit(model, r, cand, base_loo, base_lfo, cutoff, base_rms,
+                   refit_start(model, idata, cand, r.estimate))
         except REFIT_FAILURES as err:
             r.note = f"refit failed: {getattr(err, 'message', None) or err}"
             r.confirmed = False
 
 
 def _refit(model, r: Ranked, cand: Candidate, base_loo, base_lfo, cutoff: float,
-           base_rms: float) -> None:
-    """Fit the scene with ``cand`` added and fill ``r``'s comparison fields."""
+           base_rms: float, start: dict | None = None) -> None:
+    """Fit the scene with ``cand`` added (first chain from ``start``) and fill ``r``'s
+    comparison fields."""
     from ..compile import Model
     from .workflow import check_model
 
     text = with_effect(model.scene, cand)
     new = Model(_load_text(model.scene, text))
-    fit = quick_fit(new)
+    fit = quick_fit(new, start=start)
     if fit.attrs.get("fit_note"):
         r.note = fit.attrs["fit_note"]
     rep = check_model(new, fit)
@@ -460,7 +485,7 @@ def _refit(model, r: Ranked, cand: Candidate, base_loo, base_lfo, cutoff: float,
     r.delta_elpd = float(diff.sum())
     r.delta_elpd_se = float(np.sqrt(len(diff)) * diff.std())
     if base_lfo is not None:
-        new_cut = quick_fit(Model(new.scene, until=cutoff))
+        new_cut = quick_fit(Model(new.scene, until=cutoff), start=start)
         r.delta_lfo = lfo_score(new, new_cut, cutoff) - base_lfo
     r.rms_before, r.rms_after = base_rms, float(rep.rms_sigma)
     key = unknown_key(model.scene, cand)

@@ -38,6 +38,9 @@ class Settings:
     # metric cuts the leapfrog steps per draw several-fold at negligible cost per step
     block: int = 100  # draws between checkpoints
     init_steps: int = 300  # optimisation steps from each prior draw before warmup
+    # constrained values ((name, value), ...) for the first chain's start, the other unknowns
+    # and chains from the prior: a refit of a nested model starts where the smaller one ended
+    start: tuple = ()
 
 
 class Problem(NamedTuple):

@@ -92,14 +92,33 @@ def prior_draws_unconstrained(problem: Problem, key, n: int) -> np.ndarray:
     return np.asarray(fn(jax.random.split(key, n)))
 
 
-def initial_positions(problem: Problem, key, chains: int) -> jnp.ndarray:
-    """One prior draw per chain at which the log density and its gradient are finite.
+def start_position(problem: Problem, key, start: dict) -> np.ndarray:
+    """A flat unconstrained vector holding the constrained values ``start`` (name -> value) and
+    a prior draw for every other unknown."""
+    model = problem.model
+    with numpyro.handlers.seed(rng_seed=key):
+        values = model.prior_values()
+    values.update({k: jnp.asarray(v, dtype=jnp.result_type(float)).reshape(jnp.shape(values[k]))
+                   for k, v in start.items() if k in values})
+    return np.asarray(ravel_pytree(unconstrain_fn(model.prior_values, (), {}, values))[0])
+
+
+def initial_positions(problem: Problem, key, chains: int, start: dict | None = None) -> jnp.ndarray:
+    """One prior draw per chain at which the log density and its gradient are finite; with
+    ``start`` (constrained values by name) the first chain starts there instead, if finite.
 
     Draws are tried in order, in rounds of ``max(4 * chains, 8)``; each is checked with the
     Problem's one compiled value-and-gradient function.
     """
     vg = value_and_grad_fn(problem)
     found: list[np.ndarray] = []
+    if start:
+        x = start_position(problem, key, start)
+        v, g = vg(jnp.asarray(x))
+        if np.isfinite(float(v)) and np.all(np.isfinite(np.asarray(g))):
+            found.append(x)
+            if len(found) == chains:
+                return jnp.asarray(np.stack(found))
     n = max(4 * chains, 8)
     for r in range(INIT_ROUNDS):
         for x in prior_draws_unconstrained(problem, jax.random.fold_in(key, r), n):
@@ -113,7 +132,8 @@ def initial_positions(problem: Problem, key, chains: int) -> jnp.ndarray:
                               "rollout may blow up for every draw")
 
 
-def make_problem(model, key, chains: int):
-    """Return (Problem, initial flat positions (chains, dim)) drawn from the prior."""
+def make_problem(model, key, chains: int, start: dict | None = None):
+    """Return (Problem, initial flat positions (chains, dim)) drawn from the prior (the first
+    at ``start`` where given, see ``initial_positions``)."""
     problem = model_problem(model)
-    return problem, initial_positions(problem, key, chains)
+    return problem, initial_positions(problem, key, chains, start)

@@ -41,7 +41,7 @@ def infer(model, backend: str = "nuts", settings: Settings | None = None, outdir
     key = jax.random.PRNGKey(settings.seed)
     k_init, k_warm, k_sample = jax.random.split(key, 3)
     with stages.stage("compile") as st:
-        problem, positions = make_problem(model, k_init, settings.chains)
+        problem, positions = make_problem(model, k_init, settings.chains, dict(settings.start))
         if ckpt is None and settings.init_steps > 0 and algo.name != "map":
             positions = find_modes(problem, positions, settings.init_steps)
         st.done(f"{problem.dim} unconstrained dimensions, {settings.chains} chains")
