@@ -114,7 +114,7 @@ def test_a_failing_refit_leaves_the_candidate_unconfirmed(quadratic, monkeypatch
 
     from physdsl.diagnose import rank
 
-    def failing_fit(model, seed=0):
+    def failing_fit(model, seed=0, start=None):
         raise np.linalg.LinAlgError("Matrix is not positive definite")
 
     monkeypatch.setattr(rank, "quick_fit", failing_fit)
