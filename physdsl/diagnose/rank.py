@@ -353,7 +353,7 @@ def refit_start(model, idata, cand: Candidate, estimate: float | None) -> dict:
     decl = model.scene.effect_library[cand.name].strength
     off = np.asarray(decl.off if decl.off is not None else 0.0, dtype=float)
     start = dict(point_estimate(model, idata))
-    if off.ndim:  # a vector strength (wind): its prior draws the start
+    if off.ndim or decl.shape:  # a vector strength (wind): its prior draws the start
         return start
     step = float(estimate) if estimate is not None and np.isfinite(estimate) else 0.0
     if decl.sign:  # one-sided: at least a hair inside the physical side

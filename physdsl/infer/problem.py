@@ -98,7 +98,8 @@ def start_position(problem: Problem, key, start: dict) -> np.ndarray:
     model = problem.model
     with numpyro.handlers.seed(rng_seed=key):
         values = model.prior_values()
-    values.update({k: jnp.asarray(v, dtype=jnp.result_type(float)).reshape(jnp.shape(values[k]))
+    values.update({k: jnp.broadcast_to(jnp.asarray(v, dtype=jnp.result_type(float)),
+                                       jnp.shape(values[k]))
                    for k, v in start.items() if k in values})
     return np.asarray(ravel_pytree(unconstrain_fn(model.prior_values, (), {}, values))[0])
 

@@ -31,6 +31,7 @@ class Contacts(NamedTuple):
     mu: jnp.ndarray  # (C,)
     e: jnp.ndarray  # (C,)
     inv_mass: jnp.ndarray | None = None  # (C,) Jn M^-1 Jn^T in closed form (free bodies only)
+    valid: jnp.ndarray | None = None  # (C,) bool, candidates that exist whatever their gap
 
 
 SLIP_ALIGN = 1e-3  # m/s: slip speeds well above this turn the friction pyramid onto the slip
@@ -84,12 +85,13 @@ def detect_all(model: Model, prm: dict, kin: Kin, v=None) -> Contacts:
         ia = jnp.asarray([p.a for p in pairs])
         ib = jnp.asarray([p.b for p in pairs])
         rows = jnp.asarray([p.rows for p in pairs])  # (P, K)
-        cp = jax.vmap(lambda pa, qa, sa, pb, qb, sb: cm.detect(ka, kb, pa, qa, sa, pb, qb, sb))(
+        cp = jax.vmap(lambda pa, qa, sa, pb, qb, sb: cm.detect(ka, kb, pa, qa, sa, pb, qb, sb,
+                                                               margin=jnp.inf))(
             kin.pos[ia], kin.quat[ia], prm["size"][ia], kin.pos[ib], kin.quat[ib], prm["size"][ib])
         Jrel = _point_jac(kin, ia, cp.point_a) - _point_jac(kin, ib, cp.point_b)
         dist = dist.at[rows].set(cp.dist)
         normal = normal.at[rows].set(cp.normal)
-        active = active.at[rows].set(cp.active)
+        active = active.at[rows].set(cp.active)  # valid (no margin): the margin comes below
         J = J.at[rows].set(Jrel)
         if free:
             ka_ = np.asarray([p.a for p in pairs])
@@ -112,7 +114,16 @@ def detect_all(model: Model, prm: dict, kin: Kin, v=None) -> Contacts:
     else:  # no friction anywhere: the LCP keeps its normal rows only
         T = jnp.zeros((C, 0, 3), normal.dtype)
     Jt = jnp.einsum("cfk,ckn->cfn", T, J)
-    return Contacts(dist, normal, active, J, Jn, Jt, mu, e, inv_m)
+    return Contacts(dist, normal, active & (dist < cm.contact_margin), J, Jn, Jt, mu, e, inv_m,
+                    active)
+
+
+def closing_within(con: Contacts, v_free, h) -> Contacts:
+    """``con`` with every candidate whose gap the free motion closes within this step active too:
+    a body faster than margin / h could otherwise start a step farther than the margin and end
+    it inside the other (its impact found a step late, a jump in the trajectory)."""
+    closing = con.valid & (con.dist + h * (con.Jn @ v_free) < 0)
+    return con._replace(active=con.active | closing)
 
 
 def _inv_mass(model: Model, prm: dict, kin: Kin, bodies, points, normal):

@@ -3,7 +3,8 @@
 Effects give one summed Load per evaluation. Scenes of free bodies use the Newton-Euler fast
 path (``free.py``); others tree kinematics and joint-space dynamics (``dynamics.py``). The LCP contact model
 needs the mass matrix (CRBA, or block-diagonal for free bodies) and runs only when some
-candidate is within the contact margin (``lax.cond``; under ``vmap`` both branches run).
+candidate is within the contact margin or closes its gap within the step (``lax.cond``; under
+``vmap`` both branches run).
 RK4 is only used without contacts (contacts are non-smooth, so scenes with contact candidates
 fall back to semi-implicit Euler; ``Simulator.integrator`` says which one runs). In LCP scenes,
 steps with no contact near advance positions by the mean of the old and new velocity (exact
@@ -102,7 +103,7 @@ def _lcp_step(model, prm, state, t, h):
     kin = kinematics(model, prm, q, v, with_jac=True)
     load = applied_load(model, prm, kin, state, t, t)
     v_free = v + h * accel(model, prm, kin, load)
-    con = cs.detect_all(model, prm, kin, v)
+    con = cs.closing_within(cs.detect_all(model, prm, kin, v), v_free, h)
 
     def contact(_):
         return cs.lcp_velocity(model, con, joint_mass_matrix(model, prm, kin), v, v_free, h)

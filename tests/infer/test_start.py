@@ -32,3 +32,9 @@ def test_map_from_the_truth_finds_the_mode(projectile_model):
                                    progress=False, start=start)
     c = float(idata.posterior["linear_drag@ball.coefficient"].mean())
     assert abs(c - 0.3) < 0.3  # the mode near the truth, not a prior corner
+
+
+def test_a_scalar_start_fills_a_vector_unknown(projectile_model):
+    problem = model_problem(projectile_model)
+    x = initial_positions(problem, jax.random.PRNGKey(0), 1, {"ball.velocity": 3.5})
+    np.testing.assert_allclose(problem.to_constrained(x[0], problem.data)["ball.velocity"], 3.5)
