@@ -24,3 +24,24 @@ def test_no_laplace_where_the_log_density_is_not_concave(curvature):
     with pytest.raises(LaplaceError, match="1 of 2 directions") as err:
         laplace_sqrt(problem, np.zeros(2))
     assert err.value.exit_code == 1 and "nuts" in err.value.render()
+
+
+def test_a_chain_in_a_minor_basin_takes_the_best_mode():
+    """Two basins, the one at x = -2 lower by 50 in log density: the chain that ends there
+    takes the best mode's Laplace approximation (a negligible share of the posterior)."""
+    import jax
+    import jax.numpy as jnp
+
+    from physdsl.infer.backends.map import MAP
+    from physdsl.infer.base import Problem, Settings
+
+    def logdensity(x, data):
+        up = -0.5 * jnp.sum((x - 2.0) ** 2) / 0.1**2
+        down = -0.5 * jnp.sum((x + 2.0) ** 2) / 0.3**2 - 50.0
+        return jnp.where(x[0] > 0, up, down)
+
+    problem = Problem(logdensity, lambda x, d: {"x": x}, 1, None, None, {})
+    modes, params, info = MAP().warmup(problem, jnp.array([[1.0], [-1.0]]), jax.random.PRNGKey(0),
+                                       Settings(warmup=100))
+    np.testing.assert_allclose(np.asarray(modes)[:, 0], [2.0, 2.0], atol=1e-6)
+    np.testing.assert_allclose(np.asarray(params["chol"])[:, 0, 0], [0.1, 0.1], rtol=1e-4)

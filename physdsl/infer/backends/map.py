@@ -94,6 +94,9 @@ def find_modes(problem, positions, steps: int = 300) -> jnp.ndarray:
     return jnp.asarray(np.stack([find_mode(problem, x, steps) for x in np.asarray(positions)]))
 
 
+MINOR_MODE = 10.0  # log-density units below the best mode: a basin the Laplace mixture drops
+
+
 class LaplaceError(InferenceError):
     """The log density is not strictly concave at the mode: no Laplace approximation there."""
 
@@ -132,12 +135,32 @@ class MAP(Backend):
     name = "map"
 
     def warmup(self, problem, positions, key, settings, on_block=None):
+        """One optimisation per chain, then a Laplace approximation at each mode.
+
+        A chain that ended far below the best mode (more than ``MINOR_MODE`` in log density:
+        a basin with a negligible share of the posterior, e.g. a start that settled on a
+        contact's kink) or at a point with no Laplace approximation takes the best mode
+        instead; only a best mode without one is an error."""
         steps = max(settings.warmup, 50)  # one optimisation, no blocks: the caller's bar jumps
-        modes = find_modes(problem, positions, steps)
-        chols = np.stack([laplace_sqrt(problem, m) for m in np.asarray(modes)])
+        modes = np.array(find_modes(problem, positions, steps))  # a writable copy
         vg = value_and_grad_fn(problem)
-        lps = np.array([float(vg(m)[0]) for m in modes])
-        return modes, {"chol": jnp.asarray(chols)}, {"log_density_at_mode": lps}
+        lps = np.array([float(vg(jnp.asarray(m))[0]) for m in modes])
+        lps = np.where(np.isfinite(lps), lps, -np.inf)
+        best = int(np.argmax(lps))
+        chol_best = laplace_sqrt(problem, modes[best])  # LaplaceError if even the best has none
+        chols = []
+        for i, m in enumerate(modes):
+            chol = chol_best if i == best else None
+            if i != best and lps[i] >= lps[best] - MINOR_MODE:
+                try:
+                    chol = laplace_sqrt(problem, m)
+                except LaplaceError:
+                    chol = None
+            if chol is None:
+                modes[i], lps[i], chol = modes[best], lps[best], chol_best
+            chols.append(chol)
+        return (jnp.asarray(modes), {"chol": jnp.asarray(np.stack(chols))},
+                {"log_density_at_mode": lps})
 
     def sample(self, problem, states, params, key, n, settings):
         keys = jax.random.split(key, states.shape[0])
