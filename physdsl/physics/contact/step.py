@@ -80,10 +80,9 @@ def impacts(e, vn_pre, vn_free, dist, h, settings: LCPSettings = LCP_SETTINGS) -
     return Impacts(closes & (v_hit < -half), target, (h - tau) * target)
 
 
-def normal_target(e, vn_pre, vn_free, dist, h, settings: LCPSettings = LCP_SETTINGS):
-    """Least separating normal velocity b per contact (see module docstring)."""
+def normal_target(hit: Impacts, dist, h, settings: LCPSettings = LCP_SETTINGS):
+    """Least separating normal velocity b per contact, given its ``impacts`` (module docstring)."""
     gap = jnp.where(dist > 0, -dist / h, -settings.baumgarte * dist / h)
-    hit = impacts(e, vn_pre, vn_free, dist, h, settings)
     return jnp.where(hit.active, hit.target, gap)
 
 
@@ -95,6 +94,7 @@ class ContactLCP(NamedTuple):
     mask: jnp.ndarray     # (m,) bool, rows that take part
     minv_jt: jnp.ndarray  # (n, C + C F): M^-1 [Jn; Jt]^T
     delassus: jnp.ndarray  # (C + C F, C + C F): [Jn; Jt] M^-1 [Jn; Jt]^T
+    hit: Impacts           # the step's impacts (targets and end gaps)
 
 
 def build_lcp(M, v_free, Jn, Jt, mu, e, vn_pre, dist, active, h,
@@ -105,7 +105,8 @@ def build_lcp(M, v_free, Jn, Jt, mu, e, vn_pre, dist, active, h,
     J = jnp.concatenate([Jn, Jt.reshape(C * F, n)], axis=0)
     minv_jt = cho_solve(cho_factor(M), J.T)
     delassus = J @ minv_jt
-    b = normal_target(e, vn_pre, Jn @ v_free, dist, h, settings)
+    hit = impacts(e, vn_pre, Jn @ v_free, dist, h, settings)
+    b = normal_target(hit, dist, h, settings)
     if F == 0:
         A, q, mask = delassus, Jn @ v_free - b, active
     else:
@@ -121,7 +122,7 @@ def build_lcp(M, v_free, Jn, Jt, mu, e, vn_pre, dist, active, h,
         mask = jnp.concatenate([active, jnp.repeat(friction, F), friction])
     A = jnp.where(mask[:, None] & mask[None, :], A, 0.0) + jnp.diag(jnp.where(mask, 0.0, 1.0))
     q = jnp.where(mask, q, 1.0)
-    return ContactLCP(A, q, mask, minv_jt, delassus)
+    return ContactLCP(A, q, mask, minv_jt, delassus, hit)
 
 
 class ContactStep(NamedTuple):
@@ -133,8 +134,7 @@ class ContactStep(NamedTuple):
     v_position: jnp.ndarray  # (n,) velocity that advances positions (v plus impact corrections)
 
 
-def position_velocity(lcp: ContactLCP, v_next, Jn, e, vn_pre, vn_free, dist, active, h,
-                      settings: LCPSettings = LCP_SETTINGS):
+def position_velocity(lcp: ContactLCP, v_next, Jn, dist, active, h):
     """Velocity for the position update: ``v_next`` plus the impulse-free correction along the
     normals of impacting contacts that puts their end-of-step gap where the split motion has it.
 
@@ -142,7 +142,7 @@ def position_velocity(lcp: ContactLCP, v_next, Jn, e, vn_pre, vn_free, dist, act
     redundant contacts such as the corners of a box landing flat).
     """
     C = Jn.shape[0]
-    hit = impacts(e, vn_pre, vn_free, dist, h, settings)
+    hit = lcp.hit
     rows = hit.active & jnp.asarray(active, bool)
     want = jnp.where(rows, (hit.gap_end - dist) / h - Jn @ v_next, 0.0)
     D = lcp.delassus[:C, :C]
@@ -166,5 +166,5 @@ def solve_lcp_step(M, v_free, Jn, Jt, mu, e, vn_pre, dist, active, h,
     lcp = build_lcp(M, v_free, Jn, Jt, mu, e, vn_pre, dist, active, h, settings)
     z = jnp.where(lcp.mask, lcp_solve(lcp.A, lcp.q, settings.solver), 0.0)
     v_next = v_free + lcp.minv_jt @ z[:C + C * F]
-    v_pos = position_velocity(lcp, v_next, Jn, e, vn_pre, Jn @ v_free, dist, active, h, settings)
+    v_pos = position_velocity(lcp, v_next, Jn, dist, active, h)
     return ContactStep(v_next, z[:C], z[C:C + C * F].reshape(C, F), v_pos)
