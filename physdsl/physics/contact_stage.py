@@ -72,7 +72,7 @@ def detect_all(model: Model, prm: dict, kin: Kin, v=None) -> Contacts:
     C, nv = model.ncon, model.nv
     dist = jnp.zeros(C)
     normal = jnp.zeros((C, 3))
-    active = jnp.zeros(C, bool)
+    valid = jnp.zeros(C, bool)
     J = jnp.zeros((C, 3, nv))
     mu = jnp.zeros(C)
     e = jnp.ones(C)
@@ -91,7 +91,7 @@ def detect_all(model: Model, prm: dict, kin: Kin, v=None) -> Contacts:
         Jrel = _point_jac(kin, ia, cp.point_a) - _point_jac(kin, ib, cp.point_b)
         dist = dist.at[rows].set(cp.dist)
         normal = normal.at[rows].set(cp.normal)
-        active = active.at[rows].set(cp.active)  # valid (no margin): the margin comes below
+        valid = valid.at[rows].set(cp.active)  # no margin given: active means valid here
         J = J.at[rows].set(Jrel)
         if free:
             ka_ = np.asarray([p.a for p in pairs])
@@ -114,8 +114,8 @@ def detect_all(model: Model, prm: dict, kin: Kin, v=None) -> Contacts:
     else:  # no friction anywhere: the LCP keeps its normal rows only
         T = jnp.zeros((C, 0, 3), normal.dtype)
     Jt = jnp.einsum("cfk,ckn->cfn", T, J)
-    return Contacts(dist, normal, active & (dist < cm.contact_margin), J, Jn, Jt, mu, e, inv_m,
-                    active)
+    return Contacts(dist, normal, valid & (dist < cm.contact_margin), J, Jn, Jt, mu, e, inv_m,
+                    valid)
 
 
 def closing_within(con: Contacts, v_free, h) -> Contacts:

@@ -4,7 +4,6 @@ import numpy as np
 
 from physdsl.infer.problem import initial_positions, model_problem
 
-from .conftest import PROJECTILE_TRUTH
 
 
 def test_first_chain_starts_at_the_given_values(projectile_model):
@@ -24,14 +23,6 @@ def test_a_start_outside_the_support_falls_back_to_the_prior(projectile_model):
                           {"linear_drag@ball.coefficient": -1.0})  # half-normal: must be > 0
     for xi in x:
         assert problem.to_constrained(xi, problem.data)["linear_drag@ball.coefficient"] > 0
-
-
-def test_map_from_the_truth_finds_the_mode(projectile_model):
-    start = tuple((k, np.asarray(v).tolist()) for k, v in PROJECTILE_TRUTH.items())
-    idata = projectile_model.infer(backend="map", chains=1, warmup=50, samples=16, seed=1,
-                                   progress=False, start=start)
-    c = float(idata.posterior["linear_drag@ball.coefficient"].mean())
-    assert abs(c - 0.3) < 0.3  # the mode near the truth, not a prior corner
 
 
 def test_a_scalar_start_fills_a_vector_unknown(projectile_model):
