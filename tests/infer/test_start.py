@@ -5,7 +5,6 @@ import numpy as np
 from physdsl.infer.problem import initial_positions, model_problem
 
 
-
 def test_first_chain_starts_at_the_given_values(projectile_model):
     problem = model_problem(projectile_model)
     start = {"linear_drag@ball.coefficient": 0.123, "ball.velocity": [3.0, 0.1, 4.0]}
