@@ -67,35 +67,11 @@ def jacobian(model, values: dict, nuisance: list[str], tested: list[str]):
         return r, (r, pred)
 
     x0 = jnp.concatenate([theta0, psi0])
-    if uses_lcp(model):
-        J, (r, pred) = reverse_jacobian(r_of, x0)
-    else:
-        J, (r, pred) = jax.jit(jax.jacfwd(r_of, has_aux=True))(x0)
+    # forward mode: a handful of unknowns against thousands of residuals (the LCP contact
+    # solver's implicit derivative is a custom_jvp, so contact scenes take this path too)
+    J, (r, pred) = jax.jit(jax.jacfwd(r_of, has_aux=True))(x0)
     pred = {k: np.asarray(v) for k, v in pred.items()}
     return np.asarray(r), np.asarray(J[:, : theta0.size]), np.asarray(J[:, theta0.size:]), pred
-
-
-def uses_lcp(model) -> bool:
-    """True when the rollout runs the LCP contact solver, whose implicit gradient is reverse-mode only."""
-    scene = model.scene
-    return bool(scene.contact_pairs) and scene.world.contact_model == "lcp"
-
-
-def reverse_jacobian(f, x0, chunk: int = 128):
-    """Jacobian of ``f`` (returning (r, aux)) by reverse mode: one linearisation, VJPs in chunks.
-
-    Used where forward mode is unavailable (custom_vjp in the contact solver); chunking keeps
-    memory at ``chunk`` cotangents at a time however many residuals there are.
-    """
-    r, vjp_fn, aux = jax.vjp(f, x0, has_aux=True)
-    n = r.shape[0]
-    pull = jax.jit(jax.vmap(lambda ct: vjp_fn(ct)[0]))
-    rows = []
-    for start in range(0, n, chunk):
-        idx = np.arange(start, min(start + chunk, n))
-        basis = jnp.zeros((len(idx), n)).at[np.arange(len(idx)), idx].set(1.0)
-        rows.append(np.asarray(pull(basis)))
-    return jnp.asarray(np.concatenate(rows)), aux
 
 
 def project_out(J_theta: np.ndarray, cols: np.ndarray) -> np.ndarray:

@@ -37,7 +37,8 @@ class Settings:
     # scenes are few and strongly correlated (launch velocity against drag), and a dense
     # metric cuts the leapfrog steps per draw several-fold at negligible cost per step
     block: int = 100  # draws between checkpoints
-    init_steps: int = 300  # optimisation steps from each prior draw before warmup
+    init_steps: int = 300  # optimisation steps from each prior draw before warmup; a chain
+    # that ends far below the best (``map.major_modes``) starts from the best mode instead
     # constrained values ((name, value), ...) for the first chain's start, the other unknowns
     # and chains from the prior: a refit of a nested model starts where the smaller one ended
     start: tuple = ()

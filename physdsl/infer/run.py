@@ -20,7 +20,7 @@ import numpy as np
 from .. import io
 from ..errors import InferenceError, UsageError
 from .base import Settings, get_backend
-from .backends.map import find_modes
+from .backends.map import find_modes, major_modes
 from .problem import make_problem
 from .progress import Stages
 
@@ -43,7 +43,7 @@ def infer(model, backend: str = "nuts", settings: Settings | None = None, outdir
     with stages.stage("compile") as st:
         problem, positions = make_problem(model, k_init, settings.chains, dict(settings.start))
         if ckpt is None and settings.init_steps > 0 and algo.name != "map":
-            positions = find_modes(problem, positions, settings.init_steps)
+            positions = major_modes(problem, find_modes(problem, positions, settings.init_steps))[0]
         st.done(f"{problem.dim} unconstrained dimensions, {settings.chains} chains")
 
     with _graceful_termination():

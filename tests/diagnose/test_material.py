@@ -191,7 +191,7 @@ def test_shared_friction_outscores_each_pair_and_its_column_is_the_derivative(sh
     each per-pair one (it explains both balls), and its score equals that of a
     finite-difference column of the residuals with respect to the one shared coefficient, in
     the scene ``with_effect`` writes (the LCP's own derivative, not a copy of the sum).
-    (About 60 s: three compiled contact rollouts and one reverse-mode Jacobian.)"""
+    (About 60 s: three compiled contact rollouts and one forward-mode Jacobian.)"""
     import jax.numpy as jnp
 
     from physdsl.compile import Model

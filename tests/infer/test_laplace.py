@@ -45,3 +45,19 @@ def test_a_chain_in_a_minor_basin_takes_the_best_mode():
                                        Settings(warmup=100))
     np.testing.assert_allclose(np.asarray(modes)[:, 0], [2.0, 2.0], atol=1e-6)
     np.testing.assert_allclose(np.asarray(params["chol"])[:, 0, 0], [0.1, 0.1], rtol=1e-4)
+
+
+def test_major_modes_keeps_near_basins_and_replaces_minor_or_broken_ones():
+    """Samplers start from ``major_modes``: a mode 5 below the best is kept (a real share of
+    the posterior), one 50 below or with a non-finite density restarts at the best."""
+    from physdsl.infer.backends.map import major_modes
+
+    def logdensity(x, data):
+        return jnp.where(x[0] > 5, jnp.nan, -0.5 * (x[0] - 1.0) ** 2 - jnp.where(x[0] < 0, 50.0, 0.0))
+
+    problem = Problem(logdensity, None, 1, None, None, {})
+    x = np.array([[1.0], [1.0 + np.sqrt(10.0)], [-1.0], [6.0]])  # best, 5 below, minor, NaN
+    modes, lps, best = major_modes(problem, x)
+    assert best == 0
+    np.testing.assert_allclose(modes[:, 0], [1.0, 1.0 + np.sqrt(10.0), 1.0, 1.0])
+    np.testing.assert_allclose(lps, [0.0, -5.0, 0.0, 0.0])
