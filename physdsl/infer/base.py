@@ -18,6 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import UsageError
+from ..physics.simulator import FORWARD_MODE_MAX
 
 BACKENDS: dict[str, "Backend"] = {}
 
@@ -125,7 +126,7 @@ def safe_logdensity(fn):
         return jnp.where(jnp.isfinite(v), v, -jnp.inf)
 
     def fwd(x, data):
-        v, g = _clean(*jax.value_and_grad(fn)(x, data))
+        v, g = _clean(*_value_and_grad(fn, x, data))
         return v, (g, data)
 
     def bwd(res, ct):
@@ -136,6 +137,21 @@ def safe_logdensity(fn):
     return f
 
 
+def _value_and_grad(fn, x, data):
+    """``fn(x, data)`` and its gradient in ``x``: by forward mode (one tangent per dimension, all
+    in one vmapped jvp) for at most ``FORWARD_MODE_MAX`` dimensions, else by reverse mode.
+
+    The rollout's derivatives are forward-mode anyway (``simulator.forward_mode``); carrying the
+    few tangents on through the interpolation and the likelihood leaves no reverse pass at all,
+    which traces and compiles to fewer, fused kernels (no scatter-adds, no transposed products)
+    and runs no slower for the handful of unknowns of a physical scene.
+    """
+    if x.size > FORWARD_MODE_MAX:
+        return jax.value_and_grad(fn)(x, data)
+    basis = jnp.eye(x.size, dtype=x.dtype)
+    return jax.vmap(lambda t: jax.jvp(lambda y: fn(y, data), (x,), (t,)), out_axes=(None, 0))(basis)
+
+
 def _zero_cotangent(a):
     if jnp.issubdtype(a.dtype, jnp.inexact):
         return jnp.zeros_like(a)
@@ -143,5 +159,9 @@ def _zero_cotangent(a):
 
 
 def _clean(v, g):
-    ok = jnp.isfinite(v) & jnp.all(jnp.isfinite(g))
-    return jnp.where(ok, v, -jnp.inf), jnp.where(ok, g, 0.0)
+    """(v, g), or (-inf, zeros) if any of them is not finite: one check and one select over
+    the value and gradient side by side (separate ones compile to a kernel each)."""
+    vg = jnp.concatenate([v[None], g])
+    ok = jnp.all(jnp.isfinite(vg))
+    out = jnp.where(ok, vg, jnp.where(jnp.arange(vg.size) == 0, -jnp.inf, 0.0))
+    return out[0], out[1:]

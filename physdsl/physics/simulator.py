@@ -17,7 +17,6 @@ import jax
 import jax.extend
 import jax.numpy as jnp
 import numpy as np
-from jax.flatten_util import ravel_pytree
 
 from ..scene import Scene
 from . import central
@@ -85,11 +84,10 @@ class Simulator:
         """The numeric params pytree for ``values`` (masses, inertia, poses, effects, q0, v0)."""
         return evaluate_params(self.scene, self.model, values)
 
-    def _trajectory(self, values, checkpoint: bool = False):
-        """States (q (T+1, nq), v (T+1, nv), contact normal force (T+1, C)) for ``values``;
+    def _trajectory(self, prm: dict, checkpoint: bool):
+        """States (q (T+1, nq), v (T+1, nv), contact normal force (T+1, C)) for params ``prm``;
         ``checkpoint``: recompute each step in reverse mode (O(T) memory)."""
         model = self.model
-        prm = evaluate_params(self.scene, model, values)
         dtype = prm["ref_pos"].dtype
         C = model.ncon
         s0 = State(prm["q0"].astype(dtype), prm["v0"].astype(dtype), jnp.zeros(C, dtype),
@@ -97,19 +95,17 @@ class Simulator:
         traj = self._scan(lambda s, t, h: step(model, prm, s, t, h), s0, checkpoint)
         return traj.q, traj.v, traj.contact_force
 
-    def _translation(self, values, checkpoint: bool = False) -> central.Translation:
+    def _translation(self, prm: dict, checkpoint: bool) -> central.Translation:
         """Free bodies under central effects (``central.decoupled``): their translation alone."""
         model = self.model
-        prm = evaluate_params(self.scene, model, values)
         s0, _ = central.split(model, prm["q0"], prm["v0"])
         fr = central.frame(model, prm)
         return self._scan(lambda s, t, h: central.translation_step(model, prm, fr, s, t, h), s0,
                           checkpoint)
 
-    def _rotation(self, values, checkpoint: bool = False) -> central.Rotation:
+    def _rotation(self, prm: dict, checkpoint: bool) -> central.Rotation:
         """Free bodies under central effects: their torque-free rotation alone."""
         model = self.model
-        prm = evaluate_params(self.scene, model, values)
         _, s0 = central.split(model, prm["q0"], prm["v0"])
         return self._scan(lambda s, t, h: central.rotation_step(model, prm, s, h), s0, checkpoint)
 
@@ -137,29 +133,29 @@ class Simulator:
 
     def _simulate(self, values, fields=None) -> Rollout:
         self.trace_count += 1
-        model = self.model
         n_in = sum(int(np.size(x)) for x in jax.tree_util.tree_leaves(values)
                    if jnp.issubdtype(jnp.result_type(x), jnp.floating))
+        if 0 < n_in <= FORWARD_MODE_MAX:
+            return forward_mode(lambda v: self._rollout(v, fields, False))(values)
+        return self._rollout(values, fields, True)
 
-        def solve(fn):
-            if 0 < n_in <= FORWARD_MODE_MAX:
-                return forward_mode(lambda x: fn(x))(values)
-            return fn(values, checkpoint=True)
-
+    def _rollout(self, values, fields, checkpoint: bool) -> Rollout:
+        """The Rollout for ``values`` (only ``fields``, if given, are sure to be filled)."""
+        model = self.model
         prm = evaluate_params(self.scene, model, values)
         t = jnp.arange(model.nsteps + 1, dtype=prm["ref_pos"].dtype) * model.dt
         if central.decoupled(model):
             # each part on its own, the rotation only for a caller that reads it
-            tr = solve(self._translation)
+            tr = self._translation(prm, checkpoint)
             fb = model.free_bodies
             pos = jax.vmap(lambda x: place(prm["ref_pos"], fb, x))(tr.x)
             lin = jax.vmap(lambda v: place(jnp.zeros_like(prm["ref_pos"]), fb, v))(tr.v)
             cf = jnp.zeros((len(t), 0), t.dtype)
             if fields is not None and set(fields) <= TRANSLATION_FIELDS:
                 return Rollout(t, None, None, pos, None, lin, None, None, None, cf)
-            q, v = central.join(tr, solve(self._rotation))
+            q, v = central.join(tr, self._rotation(prm, checkpoint))
         else:
-            q, v, cf = solve(self._trajectory)
+            q, v, cf = self._trajectory(prm, checkpoint)
         obs = jax.vmap(lambda q, v: observe(model, prm, q, v))(q, v)
         if central.decoupled(model):  # the same values, read off the translation alone
             obs = (pos, obs[1], lin) + obs[3:]
@@ -171,8 +167,13 @@ class Simulator:
         ``fields``: the Rollout fields the caller reads (default all); others may be None, and
         what they alone need is then neither traced nor compiled.
         """
-        return self._jit({k: _canonical(v) for k, v in dict(values).items()},
-                         None if fields is None else tuple(sorted(fields)))
+        values = {k: _canonical(v) for k, v in dict(values).items()}
+        fields = None if fields is None else tuple(sorted(fields))
+        if any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(values)):
+            # inside a traced function: inline (a nested jit would be linearized as a whole,
+            # partial-evaluating the forward-mode scan again, for nothing: XLA inlines it anyway)
+            return self._simulate(values, fields)
+        return self._jit(values, fields)
 
 
 # Rollout fields of a decoupled scene (``central.decoupled``) that need no rotation
@@ -181,41 +182,69 @@ TRANSLATION_FIELDS = {"t", "body_pos", "body_vel", "contact_force"}
 
 def forward_mode(f):
     """``f(values)`` whose derivatives (jvp, and grad by transposition) come from its forward-mode
-    Jacobian with respect to every float leaf of ``values``.
+    Jacobian with respect to the float leaves of ``values`` that ``f`` reads.
 
     The Jacobian is one scan carrying the state and its P tangents, which compiles and runs far
     faster than reverse mode through a scan of many small steps (whose backward pass splits into
     hundreds of tiny kernels per step) when P, the number of scalar unknowns, is small.
-    ``f``'s Python is traced once, into a jaxpr that the primal and the Jacobian both evaluate:
-    tracing it again under jvp and vmap would cost several times as much.
+    ``f``'s Python is traced once, into a jaxpr pruned of what no output needs (parameters the
+    outputs never read, e.g. a rotation a position likelihood drops); the primal and the Jacobian
+    both evaluate that jaxpr, and inputs it does not read get no tangent column.
     """
     def apply(values):
-        closed, shape = jax.make_jaxpr(f, return_shape=True)(values)
+        leaves, in_tree = jax.tree_util.tree_flatten(values)
+        closed, shape = jax.make_jaxpr(lambda *xs: f(jax.tree_util.tree_unflatten(in_tree, xs)),
+                                       return_shape=True)(*leaves)
+        closed, used = _prune(closed)
         run_flat = jax.extend.core.jaxpr_as_fun(closed)
-        tree = jax.tree_util.tree_structure(shape)
+        out_tree = jax.tree_util.tree_structure(shape)
+        cols = [i for i, x in enumerate(leaves)
+                if used[i] and jnp.issubdtype(jnp.result_type(x), jnp.floating)]
 
-        def run(values):
-            return jax.tree_util.tree_unflatten(tree, run_flat(*jax.tree_util.tree_leaves(values)))
+        def run(*xs):
+            return jax.tree_util.tree_unflatten(out_tree, run_flat(*xs))
 
         g = jax.custom_jvp(run)
 
         @g.defjvp
         def rule(primals, tangents):
-            (values,), (dvalues,) = primals, tangents
-            keys = [k for k in values if jnp.issubdtype(jnp.result_type(values[k]), jnp.floating)]
-            flat, unravel = ravel_pytree({k: values[k] for k in keys})
+            if not cols:
+                out = run(*primals)
+                return out, jax.tree_util.tree_map(jnp.zeros_like, out)
+            flat = jnp.concatenate([jnp.ravel(primals[i]) for i in cols])
+            cuts = np.cumsum([np.size(primals[i]) for i in cols])[:-1].tolist()
 
             def fx(x):
-                return run({**values, **unravel(x)})
+                xs = list(primals)
+                for i, part in zip(cols, jnp.split(x, cuts)):
+                    xs[i] = part.reshape(jnp.shape(primals[i])).astype(jnp.result_type(primals[i]))
+                return run(*xs)
 
             basis = jnp.eye(flat.size, dtype=flat.dtype)
             out, jac = jax.vmap(lambda t: jax.jvp(fx, (flat,), (t,)), out_axes=(None, 0))(basis)
-            dx = ravel_pytree({k: dvalues[k] for k in keys})[0]
+            dx = jnp.concatenate([jnp.ravel(tangents[i]) for i in cols])
             return out, jax.tree_util.tree_map(lambda j: jnp.tensordot(dx, j, axes=1), jac)
 
-        return g(values)
+        return g(*leaves)
 
     return apply
+
+
+def _prune(closed):
+    """(``closed`` without the equations no output depends on, which inputs it still reads).
+
+    Top-level only (a loop or call is kept whole if any of its outputs is read); equations with
+    effects are kept."""
+    jaxpr = closed.jaxpr
+    Var = jax.extend.core.Var
+    live = {v for v in jaxpr.outvars if isinstance(v, Var)}
+    kept = []
+    for eqn in reversed(jaxpr.eqns):
+        if eqn.effects or any(v in live for v in eqn.outvars):
+            kept.append(eqn)
+            live.update(v for v in eqn.invars if isinstance(v, Var))
+    pruned = jax.extend.core.ClosedJaxpr(jaxpr.replace(eqns=kept[::-1]), closed.consts)
+    return pruned, [v in live for v in jaxpr.invars]
 
 
 def _canonical(x):
