@@ -48,11 +48,16 @@ def distribution_class(name: str):
 
 
 def build_distribution(prior: Prior, values, shape: tuple[int, ...]):
-    """The numpyro distribution of ``prior`` with event shape ``shape`` (arguments evaluated)."""
+    """The numpyro distribution of ``prior`` with event shape ``shape`` (arguments evaluated).
+
+    Without numpyro's sample validation: a value in the potential comes through the prior's own
+    transform, so it is in the support by construction, and a non-finite log density is caught
+    by ``safe_logdensity``; the check would only add a select to every log-probability.
+    """
     cls = distribution_class(prior.dist)
     args = [evaluate(a, values) for a in prior.args]
     kwargs = {k: evaluate(v, values) for k, v in prior.kwargs}
-    d = cls(*args, **kwargs)
+    d = cls(*args, **kwargs, validate_args=False)
     event_dims = len(d.event_shape)
     batch_needed = shape[: len(shape) - event_dims] if event_dims else shape
     if tuple(d.batch_shape) != tuple(batch_needed):
@@ -229,10 +234,10 @@ class Model:
 
     def noise_distribution(self, obs: Observation, values, loc):
         scale = self.noise_scale(obs, values)
-        if obs.noise.kind == "student_t":
+        if obs.noise.kind == "student_t":  # (residuals are real: no validation, as priors)
             df = evaluate(obs.noise.df, values) if obs.noise.df is not None else 4.0
-            return dist.StudentT(df, loc, scale)
-        return dist.Normal(loc, scale)
+            return dist.StudentT(df, loc, scale, validate_args=False)
+        return dist.Normal(loc, scale, validate_args=False)
 
     def pointwise_log_likelihood(self, values, preds, data=None) -> dict:
         """Log-likelihood per measurement time (axes summed) given predictions: name -> (N,)."""

@@ -44,8 +44,9 @@ def interpolation(grid: np.ndarray, times: np.ndarray, file: str = "") -> Interp
                         hint="set world { duration: ... } to cover the data")
     dt = grid[1] - grid[0] if len(grid) > 1 else 1.0
     pos = np.clip((times - grid[0]) / dt, 0, len(grid) - 1)
-    lo = np.clip(np.floor(pos).astype(int), 0, len(grid) - 1)
-    hi = np.clip(lo + 1, 0, len(grid) - 1)
+    # int32 indices: XLA gathers by int32, so int64 ones would cost a conversion kernel each
+    lo = np.clip(np.floor(pos).astype(np.int32), 0, len(grid) - 1)
+    hi = np.clip(lo + 1, 0, len(grid) - 1).astype(np.int32)
     w = np.where(hi > lo, pos - lo, 0.0)
     return Interpolation(lo, hi, w)
 
@@ -63,7 +64,9 @@ def predict(rollout, simulator, obs: Observation, interp: Interpolation):
     """Noise-free prediction of ``obs`` at its measurement times: (N, D)."""
     track = model_track(rollout, simulator, obs)
     w = jnp.asarray(interp.w)[:, None]
-    out = track[interp.lo] * (1 - w) + track[interp.hi] * w
+    n = len(interp.w)
+    rows = track[jnp.concatenate([jnp.asarray(interp.lo), jnp.asarray(interp.hi)])]  # one gather
+    out = rows[:n] * (1 - w) + rows[n:] * w
     if obs.quantity == "orientation":
         out = out / jnp.linalg.norm(out, axis=-1, keepdims=True)
     return out
