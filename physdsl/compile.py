@@ -104,8 +104,8 @@ class ObservedTrajectory:
 
     def data(self) -> dict:
         """The arrays the compiled program takes for this observation (see ``Model.data``)."""
-        return {"measured": self.measured, "mask": self.mask, "lo": self.interp.lo,
-                "hi": self.interp.hi, "w": self.interp.w}
+        return {"measured": self.measured, "mask": self.mask, "rows": self.interp.rows,
+                "w": self.interp.w}
 
 
 def structure_key(scene: Scene) -> str:
@@ -208,7 +208,7 @@ class Model:
 
     @property
     def data(self) -> dict:
-        """The measurements as the program's argument: name -> {measured, mask, lo, hi, w}."""
+        """The measurements as the program's argument: name -> {measured, mask, rows, w}."""
         return {o.obs.name: o.data() for o in self.observed}
 
     @property
@@ -339,7 +339,7 @@ class Model:
 
 
 def _interp(d) -> trajectory.Interpolation:
-    return trajectory.Interpolation(d["lo"], d["hi"], d["w"])
+    return trajectory.Interpolation(d["rows"], d["w"])
 
 
 def compile_scene(scene: Scene) -> Model:

@@ -31,9 +31,16 @@ QUANTITIES = {
 class Interpolation:
     """Static linear interpolation from the rollout grid onto measurement times."""
 
-    lo: np.ndarray  # (N,) int index of the grid point at or before each time
-    hi: np.ndarray  # (N,) int index after
-    w: np.ndarray  # (N,) weight of ``hi``
+    rows: np.ndarray  # (2N,) int32: the grid point at or before each time, then the one after
+    w: np.ndarray  # (N,) weight of the one after
+
+    @property
+    def lo(self) -> np.ndarray:
+        return self.rows[: len(self.w)]
+
+    @property
+    def hi(self) -> np.ndarray:
+        return self.rows[len(self.w):]
 
 
 def interpolation(grid: np.ndarray, times: np.ndarray, file: str = "") -> Interpolation:
@@ -44,11 +51,12 @@ def interpolation(grid: np.ndarray, times: np.ndarray, file: str = "") -> Interp
                         hint="set world { duration: ... } to cover the data")
     dt = grid[1] - grid[0] if len(grid) > 1 else 1.0
     pos = np.clip((times - grid[0]) / dt, 0, len(grid) - 1)
-    # int32 indices: XLA gathers by int32, so int64 ones would cost a conversion kernel each
-    lo = np.clip(np.floor(pos).astype(np.int32), 0, len(grid) - 1)
-    hi = np.clip(lo + 1, 0, len(grid) - 1).astype(np.int32)
+    lo = np.clip(np.floor(pos).astype(int), 0, len(grid) - 1)
+    hi = np.clip(lo + 1, 0, len(grid) - 1)
     w = np.where(hi > lo, pos - lo, 0.0)
-    return Interpolation(lo, hi, w)
+    # both neighbours in one int32 array: one gather (XLA indexes by int32; int64 indices, or
+    # two arrays joined in the traced function, would each cost a kernel of their own)
+    return Interpolation(np.concatenate([lo, hi]).astype(np.int32), w)
 
 
 def model_track(rollout, simulator, obs: Observation):
@@ -65,7 +73,7 @@ def predict(rollout, simulator, obs: Observation, interp: Interpolation):
     track = model_track(rollout, simulator, obs)
     w = jnp.asarray(interp.w)[:, None]
     n = len(interp.w)
-    rows = track[jnp.concatenate([jnp.asarray(interp.lo), jnp.asarray(interp.hi)])]  # one gather
+    rows = track[jnp.asarray(interp.rows)]
     out = rows[:n] * (1 - w) + rows[n:] * w
     if obs.quantity == "orientation":
         out = out / jnp.linalg.norm(out, axis=-1, keepdims=True)

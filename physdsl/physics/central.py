@@ -67,17 +67,23 @@ class Frame(NamedTuple):
     zero: jnp.ndarray  # (B, 3)
 
 
-def frame(model: Model, prm: dict) -> Frame:
+def frame(model: Model, prm: dict) -> Frame | None:
+    """The static rows, or None when every body moves (``place`` then reads no row of them)."""
+    if tuple(model.free_bodies) == tuple(range(model.nbody)):
+        return None
     pos0 = prm["ref_pos"]
     com0 = pos0 + mv(quat_to_mat(normalize(prm["ref_quat"])), prm["com"])
     return Frame(pos0, com0, jnp.zeros_like(pos0))
 
 
-def _translation_accel(model: Model, prm: dict, fr: Frame, x, v, t, t_step):
+def _translation_accel(model: Model, prm: dict, fr: Frame | None, x, v, t, t_step):
     """(nF, 3) accelerations of the free bodies: summed central forces over mass."""
     fb = model.free_bodies
-    kin = Kin(pos=place(fr.pos, fb, x), quat=None, rot=None, com=place(fr.com, fb, x), ang=None,
-              vcom=place(fr.zero, fb, v), q=None, v=None)
+    if fr is None:  # every body moves: its rows are all there is
+        kin = Kin(pos=x, quat=None, rot=None, com=x, ang=None, vcom=v, q=None, v=None)
+    else:
+        kin = Kin(pos=place(fr.pos, fb, x), quat=None, rot=None, com=place(fr.com, fb, x),
+                  ang=None, vcom=place(fr.zero, fb, v), q=None, v=None)
     empty = jnp.zeros(0, x.dtype)
     load = applied_load(model, prm, kin, State(empty, empty, empty, jnp.zeros((0, 3), x.dtype)),
                         t, t_step)
@@ -90,7 +96,7 @@ def _rotation_accel(model: Model, prm: dict, w):
     return mv(prm["free_inv_inertia"], -jnp.cross(w, mv(inertia, w)))
 
 
-def translation_step(model: Model, prm: dict, fr: Frame, s: Translation, t, h) -> Translation:
+def translation_step(model: Model, prm: dict, fr: Frame | None, s: Translation, t, h) -> Translation:
     """Advance the translation by h from time t with the scene's integrator."""
     acc = lambda x, v, tt: _translation_accel(model, prm, fr, x, v, tt, t)  # noqa: E731
     x, v = s
