@@ -150,3 +150,19 @@ def test_wrong_target_is_a_model_error():
     with pytest.raises(ModelError) as err:
         build_model(base([effect("joint_damping", "ball", coefficient=0.1)]))
     assert "joint" in err.value.hint
+
+
+def test_quadratic_drag_derivative_rule_matches_finite_differences_and_is_zero_at_rest():
+    from physdsl.physics.effects.quadratic_drag import speed_times
+
+    v = jnp.array([[3.0, -1.5, 0.7], [0.2, 0.1, -4.0]])
+    dv = jnp.array([[0.3, 0.8, -0.5], [-1.0, 0.4, 0.2]])
+    _, tangent = jax.jvp(speed_times, (v,), (dv,))
+    eps = 1e-6
+    fd = (speed_times(v + eps * dv) - speed_times(v - eps * dv)) / (2 * eps)
+    np.testing.assert_allclose(tangent, fd, rtol=1e-8, atol=1e-9)
+    # |v| v = 0 at rest, and so is its derivative (a guard-free norm would give NaN here)
+    out, tangent0 = jax.jvp(speed_times, (jnp.zeros((1, 3)),), (dv[:1],))
+    assert np.all(out == 0.0) and np.all(tangent0 == 0.0)
+    np.testing.assert_allclose(jax.jacfwd(lambda x: speed_times(x).sum())(v),
+                               jax.jacrev(lambda x: speed_times(x).sum())(v), rtol=1e-12)
