@@ -310,25 +310,31 @@ FIT_DRAWS = 64  # Laplace draws per chain: enough for PSIS-LOO and 90% intervals
 
 
 def fit_with_fallback(model, backend: str, **settings):
-    """``model.infer(backend=...)``; where MAP's Laplace step fails (a log density with a kink
-    at the mode, e.g. a contact that switches on, or a flat direction: LaplaceError, or draws
-    wider than the prior, see ``wider_than_prior``) the posterior is sampled by random-walk
-    Metropolis started at the modes instead, which needs no Hessian and no gradient;
-    ``idata.attrs["fit_note"]`` says so."""
+    """``model.infer(backend=...)``; for ``map``, the modes are found once and where MAP's
+    Laplace step fails there (a log density with a kink at the mode, e.g. a contact that
+    switches on, or a flat direction: LaplaceError, or draws wider than the prior, see
+    ``wider_than_prior``) the posterior is sampled by random-walk Metropolis started at those
+    same modes, which needs no Hessian and no gradient; ``idata.attrs["fit_note"]`` says so."""
     from ..infer.backends.map import LaplaceError
+    from ..infer.base import Settings
+    from ..infer.run import starts
     from .workflow import wider_than_prior
 
+    if backend != "map":
+        return model.infer(backend=backend, **settings)
+    run = {k: v for k, v in settings.items() if k in Settings.__dataclass_fields__}
+    modes = np.asarray(starts(model, Settings(**run), max(run.get("warmup", 50), 50))[1])
     try:
-        idata = model.infer(backend=backend, **settings)
-        wide = wider_than_prior(model, idata) if backend == "map" else []
+        idata = model.infer(backend="map", positions=modes, **settings)
+        wide = wider_than_prior(model, idata)
         if not wide:
             return idata
         why = f"Laplace draws of {', '.join(wide)} wider than the prior"
     except LaplaceError as err:
         why = f"Laplace approximation failed ({err.message})"
     # each transition costs a rollout (on contact scenes the bulk of a fit): a short run
-    settings = {**settings, "warmup": min(settings.get("warmup", 200), 200), "init_steps": 100}
-    idata = model.infer(backend="rmh", **settings)
+    settings = {**settings, "warmup": min(settings.get("warmup", 200), 200)}
+    idata = model.infer(backend="rmh", positions=modes, **settings)
     idata.attrs["fit_note"] = f"{why}; posterior sampled by random-walk Metropolis from the modes"
     return idata
 

@@ -21,29 +21,38 @@ from .. import io
 from ..errors import InferenceError, UsageError
 from .base import Settings, get_backend
 from .backends.map import find_modes, major_modes
-from .problem import make_problem
+from .problem import make_problem, model_problem
 from .progress import Stages
 
 CHECKPOINT = "checkpoint.pkl"
 
 
 def infer(model, backend: str = "nuts", settings: Settings | None = None, outdir=None,
-          resume: bool = False, force: bool = False, progress: bool = True, **overrides):
-    """Posterior over every unknown of ``model`` as arviz InferenceData (saved if ``outdir``)."""
+          resume: bool = False, force: bool = False, progress: bool = True, positions=None,
+          **overrides):
+    """Posterior over every unknown of ``model`` as arviz InferenceData (saved if ``outdir``).
+
+    ``positions`` (chains, dim): flat unconstrained starts that replace the initialisation
+    (prior draws and their optimisation), e.g. modes found once and shared by two backends."""
     settings = replace(settings or Settings(), **overrides)
     algo = get_backend(backend)
     out = io.prepare_outdir(outdir, force=force, resume=resume) if outdir else None
     stages = Stages(enabled=progress)
     ckpt_path = out / CHECKPOINT if out else None
-    fingerprint = run_fingerprint(model, backend, settings)
+    fingerprint = run_fingerprint(model, backend, settings, positions)
     ckpt = _load_checkpoint(ckpt_path, fingerprint) if (resume and ckpt_path) else None
 
     key = jax.random.PRNGKey(settings.seed)
     k_init, k_warm, k_sample = jax.random.split(key, 3)
     with stages.stage("compile") as st:
-        problem, positions = make_problem(model, k_init, settings.chains, dict(settings.start))
-        if ckpt is None and settings.init_steps > 0 and algo.name != "map":
-            positions = major_modes(problem, find_modes(problem, positions, settings.init_steps))[0]
+        if positions is not None:
+            problem, positions = model_problem(model), jax.numpy.asarray(positions)
+            if positions.shape != (settings.chains, problem.dim):
+                raise UsageError(f"start positions of shape {positions.shape} for "
+                                 f"{settings.chains} chains of {problem.dim} dimensions")
+        else:
+            steps = settings.init_steps if (ckpt is None and algo.name != "map") else 0
+            problem, positions = starts(model, settings, steps)
         st.done(f"{problem.dim} unconstrained dimensions, {settings.chains} chains")
 
     with _graceful_termination():
@@ -90,9 +99,23 @@ def infer(model, backend: str = "nuts", settings: Settings | None = None, outdir
     return idata
 
 
-def run_fingerprint(model, backend: str, settings: Settings) -> str:
-    """Hash of everything that determines the draws (scene text, data, backend, settings)."""
+def starts(model, settings: Settings, optimise_steps: int):
+    """(Problem, flat unconstrained starts (chains, dim)): prior draws (the first at
+    ``settings.start``), each optimised for ``optimise_steps`` when positive, chains that end
+    in a minor basin moved to the best mode (``major_modes``). Random numbers as in ``infer``."""
+    k_init = jax.random.split(jax.random.PRNGKey(settings.seed), 3)[0]
+    problem, positions = make_problem(model, k_init, settings.chains, dict(settings.start))
+    if optimise_steps > 0:
+        positions = major_modes(problem, find_modes(problem, positions, optimise_steps))[0]
+    return problem, positions
+
+
+def run_fingerprint(model, backend: str, settings: Settings, positions=None) -> str:
+    """Hash of everything that determines the draws (scene text, data, backend, settings,
+    given start positions)."""
     h = hashlib.sha256()
+    if positions is not None:
+        h.update(np.ascontiguousarray(np.asarray(positions, dtype=float)).tobytes())
     h.update(model.scene.source.encode())
     for o in model.scene.observations:
         h.update(np.ascontiguousarray(o.values).tobytes())

@@ -190,3 +190,51 @@ def test_a_posterior_wider_than_its_prior_is_flagged(quadratic):
     v = broken.posterior["ball.velocity"]
     broken.posterior["ball.velocity"] = v + 1e5 * (v - v.mean(("chain", "draw")))
     assert wider_than_prior(quadratic.model, broken) == ["ball.velocity"]
+
+
+def test_where_laplace_fails_metropolis_starts_at_the_same_modes(quadratic, monkeypatch):
+    """The fallback samples from the modes MAP found (found once), not from fresh prior draws:
+    both backends get the same start positions, the second chain included."""
+    from physdsl.diagnose import rank
+    from physdsl.infer.backends import map as map_backend
+
+    def no_laplace(problem, mode):
+        raise map_backend.LaplaceError("not strictly concave (test)")
+
+    monkeypatch.setattr(map_backend, "laplace_sqrt", no_laplace)
+    model = quadratic.model
+    calls = []
+    real_infer = type(model).infer
+
+    def spy(self, **kwargs):
+        calls.append((kwargs["backend"], np.asarray(kwargs["positions"])))
+        return real_infer(self, **kwargs)
+
+    monkeypatch.setattr(type(model), "infer", spy)
+    idata = rank.fit_with_fallback(model, "map", chains=2, warmup=60, samples=20, seed=1,
+                                   progress=False)
+    assert [b for b, _ in calls] == ["map", "rmh"]
+    np.testing.assert_array_equal(calls[0][1], calls[1][1])
+    assert "random-walk Metropolis" in idata.attrs["fit_note"]
+    # both chains sit at the fitted velocity (posterior sd ~ mm/s; the prior's is 2 m/s)
+    mode = quadratic.idata.posterior["ball.velocity"].values.mean(axis=(0, 1))
+    for chain in idata.posterior["ball.velocity"].values:
+        assert np.max(np.abs(chain.mean(axis=0) - mode)) < 0.05
+
+
+def test_infer_starts_at_given_positions(quadratic):
+    """``positions`` replaces the prior draws and their optimisation: one Metropolis step
+    from a far point stays near it; a wrong shape is a usage error."""
+    from physdsl.errors import UsageError
+    from physdsl.infer.problem import model_problem
+
+    model = quadratic.model
+    dim = model_problem(model).dim
+    far = np.tile(np.linspace(5.0, 6.0, dim), (2, 1))
+    idata = model.infer(backend="rmh", positions=far, chains=2, warmup=1, samples=1,
+                        progress=False)
+    v = idata.posterior["ball.velocity"].values[:, 0]
+    assert np.all(v > 4.0)  # the prior is normal((3, 0, 12), 2): (x, y) ~ 5-6 only from the start
+    with pytest.raises(UsageError, match="start positions"):
+        model.infer(backend="rmh", positions=far[:1], chains=2, warmup=1, samples=1,
+                    progress=False)
