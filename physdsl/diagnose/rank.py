@@ -275,7 +275,34 @@ def combined_loo(idata):
                         log_likelihood={"all": stacked})
     with warnings.catch_warnings():  # said in words by loo_reliability, not as a raw warning
         warnings.simplefilter("ignore", UserWarning)
-        return az.loo(data, pointwise=True)
+        warnings.simplefilter("ignore", RuntimeWarning)  # constant points, handled below
+        loo = az.loo(data, pointwise=True)
+    return _constant_points_exact(loo, stacked.reshape(-1, stacked.shape[2]))
+
+
+CONSTANT_LL = 1e-9  # spread of a point's log-likelihood over the draws below which it is constant
+
+
+def _constant_points_exact(loo, ll):
+    """PSIS-LOO with the points whose log-likelihood does not vary over the draws set exactly.
+
+    Leaving such a point out changes no importance weight, so its LOO density is its
+    log-likelihood itself; PSIS cannot fit a Pareto tail to equal weights and returns NaN
+    there (a block that does not rotate: its measured orientation depends on no unknown),
+    which would make the whole ELPD NaN."""
+    flat = (ll.max(axis=0) - ll.min(axis=0)) < CONSTANT_LL
+    if not flat.any():
+        return loo
+    loo_i = np.asarray(loo.loo_i).copy()
+    loo_i[flat] = ll[:, flat].mean(axis=0)
+    loo.loo_i.values[:] = loo_i
+    loo.pareto_k.values[np.asarray(flat)] = 0.0
+    loo["elpd_loo"] = float(loo_i.sum())
+    m = ll.max(axis=0)
+    lppd = float(np.sum(m + np.log(np.mean(np.exp(ll - m), axis=0))))
+    loo["p_loo"] = lppd - float(loo_i.sum())
+    loo["se"] = float(np.sqrt(loo_i.size * np.var(loo_i)))
+    return loo
 
 
 def loo_reliability(loo) -> str | None:

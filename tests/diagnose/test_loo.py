@@ -3,6 +3,7 @@ import warnings
 
 import arviz as az
 import numpy as np
+import pytest
 
 from physdsl.diagnose.rank import combined_loo, loo_reliability
 
@@ -23,3 +24,21 @@ def test_loo_is_quiet_and_says_when_it_is_unreliable():
     assert abs(good.elpd_loo + 30.0) < 0.5  # 30 measurements at log density -1 +- 0.1
     assert loo_reliability(good) is None
     assert "1 of 30 measurements" in loo_reliability(bad)
+
+
+def test_points_no_unknown_moves_have_their_exact_loo_density():
+    """A measurement whose log-likelihood is the same in every draw (a block that does not
+    rotate: its orientation depends on no unknown) has LOO density equal to that value; PSIS
+    alone returns NaN there and made the whole ELPD NaN."""
+    rng = np.random.default_rng(1)
+    ll = rng.normal(-1.0, 0.1, (2, 100, 10))
+    ll[..., 4] = 2.5 + 1e-14 * rng.normal(size=(2, 100))  # constant up to rounding
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        loo = combined_loo(_idata(ll))
+    assert np.asarray(loo.loo_i)[4] == np.float64(ll[..., 4].mean())
+    assert np.isfinite(loo.elpd_loo) and np.isfinite(loo.se) and np.isfinite(loo.p_loo)
+    varying = combined_loo(_idata(ll[..., [0, 1, 2, 3, 5, 6, 7, 8, 9]]))
+    assert float(loo.elpd_loo) == pytest.approx(float(np.sum(varying.loo_i)) + ll[..., 4].mean(),
+                                                rel=1e-12)
+    assert np.asarray(loo.pareto_k)[4] == 0.0
