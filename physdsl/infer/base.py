@@ -18,7 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import UsageError
-from ..physics.simulator import FORWARD_MODE_MAX
+from ..physics.forward import FORWARD_MODE_MAX
 
 BACKENDS: dict[str, "Backend"] = {}
 

@@ -5,7 +5,7 @@ traced function, scans ``step`` over the recorded times and reads body and joint
 from the states. Free bodies under central effects alone (``central.decoupled``) scan their
 translation and rotation separately, and a caller that names the fields it reads
 (``simulate(values, fields)``) gets no rotation it does not read. Derivatives of the
-trajectory use forward mode for few unknowns (``forward_mode``), else reverse mode with
+trajectory use forward mode for few unknowns (``forward.forward_mode``), else reverse mode with
 ``jax.checkpoint`` on each step (O(T) memory).
 """
 from __future__ import annotations
@@ -20,15 +20,13 @@ import numpy as np
 
 from ..scene import Scene
 from . import central
+from .forward import FORWARD_MODE_MAX, forward_mode
 from .integrate import State, kinematics, step
 from .model import Model, build_model
 from .params import evaluate_params
 from .rows import place
 
 
-# at most this many scalar unknowns: derivatives of the trajectory by forward mode (see
-# ``forward_mode``); more: reverse mode through a checkpointed scan
-FORWARD_MODE_MAX = 24
 
 
 class Rollout(NamedTuple):
@@ -178,73 +176,6 @@ class Simulator:
 
 # Rollout fields of a decoupled scene (``central.decoupled``) that need no rotation
 TRANSLATION_FIELDS = {"t", "body_pos", "body_vel", "contact_force"}
-
-
-def forward_mode(f):
-    """``f(values)`` whose derivatives (jvp, and grad by transposition) come from its forward-mode
-    Jacobian with respect to the float leaves of ``values`` that ``f`` reads.
-
-    The Jacobian is one scan carrying the state and its P tangents, which compiles and runs far
-    faster than reverse mode through a scan of many small steps (whose backward pass splits into
-    hundreds of tiny kernels per step) when P, the number of scalar unknowns, is small.
-    ``f``'s Python is traced once, into a jaxpr pruned of what no output needs (parameters the
-    outputs never read, e.g. a rotation a position likelihood drops); the primal and the Jacobian
-    both evaluate that jaxpr, and inputs it does not read get no tangent column.
-    """
-    def apply(values):
-        leaves, in_tree = jax.tree_util.tree_flatten(values)
-        closed, shape = jax.make_jaxpr(lambda *xs: f(jax.tree_util.tree_unflatten(in_tree, xs)),
-                                       return_shape=True)(*leaves)
-        closed, used = _prune(closed)
-        run_flat = jax.extend.core.jaxpr_as_fun(closed)
-        out_tree = jax.tree_util.tree_structure(shape)
-        cols = [i for i, x in enumerate(leaves)
-                if used[i] and jnp.issubdtype(jnp.result_type(x), jnp.floating)]
-
-        def run(*xs):
-            return jax.tree_util.tree_unflatten(out_tree, run_flat(*xs))
-
-        g = jax.custom_jvp(run)
-
-        @g.defjvp
-        def rule(primals, tangents):
-            if not cols:
-                out = run(*primals)
-                return out, jax.tree_util.tree_map(jnp.zeros_like, out)
-            flat = jnp.concatenate([jnp.ravel(primals[i]) for i in cols])
-            cuts = np.cumsum([np.size(primals[i]) for i in cols])[:-1].tolist()
-
-            def fx(x):
-                xs = list(primals)
-                for i, part in zip(cols, jnp.split(x, cuts)):
-                    xs[i] = part.reshape(jnp.shape(primals[i])).astype(jnp.result_type(primals[i]))
-                return run(*xs)
-
-            basis = jnp.eye(flat.size, dtype=flat.dtype)
-            out, jac = jax.vmap(lambda t: jax.jvp(fx, (flat,), (t,)), out_axes=(None, 0))(basis)
-            dx = jnp.concatenate([jnp.ravel(tangents[i]) for i in cols])
-            return out, jax.tree_util.tree_map(lambda j: jnp.tensordot(dx, j, axes=1), jac)
-
-        return g(*leaves)
-
-    return apply
-
-
-def _prune(closed):
-    """(``closed`` without the equations no output depends on, which inputs it still reads).
-
-    Top-level only (a loop or call is kept whole if any of its outputs is read); equations with
-    effects are kept."""
-    jaxpr = closed.jaxpr
-    Var = jax.extend.core.Var
-    live = {v for v in jaxpr.outvars if isinstance(v, Var)}
-    kept = []
-    for eqn in reversed(jaxpr.eqns):
-        if eqn.effects or any(v in live for v in eqn.outvars):
-            kept.append(eqn)
-            live.update(v for v in eqn.invars if isinstance(v, Var))
-    pruned = jax.extend.core.ClosedJaxpr(jaxpr.replace(eqns=kept[::-1]), closed.consts)
-    return pruned, [v in live for v in jaxpr.invars]
 
 
 def _canonical(x):
