@@ -162,7 +162,7 @@ def _scan(eqn, env, tenv, P) -> None:
     dinit = [tans[nc + k] if tans[nc + k] is not None
              else jnp.zeros((P,) + jnp.shape(init[k]), jnp.result_type(init[k])) for k in fk]
     dxs = [jnp.moveaxis(tans[nc + nk + k], 0, 1) for k in dx]  # (T, P, ...)
-    body = core.jaxpr_as_fun(p["jaxpr"])
+    body = core.jaxpr_as_fun(prune(p["jaxpr"])[0])  # (a step's unread loads, e.g. torques)
 
     def step(carry, x):
         (c, dcarry), (xv, dxv) = carry, x
