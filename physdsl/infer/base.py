@@ -148,7 +148,7 @@ def _value_and_grad(fn, x, data):
     """
     if x.size > FORWARD_MODE_MAX:
         return jax.value_and_grad(fn)(x, data)
-    basis = jnp.eye(x.size, dtype=x.dtype)
+    basis = np.eye(x.size, dtype=x.dtype)  # a constant, not ops to trace
     return jax.vmap(lambda t: jax.jvp(lambda y: fn(y, data), (x,), (t,)), out_axes=(None, 0))(basis)
 
 
