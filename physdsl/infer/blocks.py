@@ -55,10 +55,18 @@ def run_blocks(run, problem: Problem, key, carries, n: int, length: int, shared_
         m = min(length, n - start)
         keys = jax.random.split(jax.random.fold_in(key, b), chains)
         shared = shared_of(start, m) if shared_of is not None else ()
-        carries, out = run(problem.data, keys, carries, shared, m)
+        carries, out = run(problem.data, keys, strong(carries), shared, m)
         outs.append(jax.tree_util.tree_map(lambda a: np.asarray(a[:, :m]), out))
         if on_block is not None:
             on_block(m)
     if not outs:
         return carries, None
     return carries, jax.tree_util.tree_map(lambda *a: np.concatenate(a, axis=1), *outs)
+
+
+def strong(tree):
+    """``tree`` with weak-typed leaves (made from Python numbers, e.g. an initial step size)
+    made strong: the compiled block returns them strong, and a weak and a strong leaf are two
+    signatures, so the block compiled again for the second call, and for the third."""
+    return jax.tree_util.tree_map(
+        lambda a: a.astype(a.dtype) if getattr(a, "weak_type", False) else a, tree)
