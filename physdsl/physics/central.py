@@ -96,7 +96,8 @@ def _rotation_accel(model: Model, prm: dict, w):
     return mv(prm["free_inv_inertia"], -jnp.cross(w, mv(inertia, w)))
 
 
-def translation_step(model: Model, prm: dict, fr: Frame | None, s: Translation, t, h) -> Translation:
+def translation_step(model: Model, prm: dict, fr: Frame | None, s: Translation, t,
+                     h) -> Translation:
     """Advance the translation by h from time t with the scene's integrator."""
     acc = lambda x, v, tt: _translation_accel(model, prm, fr, x, v, tt, t)  # noqa: E731
     x, v = s

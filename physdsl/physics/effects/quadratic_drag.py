@@ -26,4 +26,5 @@ def _speed_times_jvp(primals, tangents):
 
 @register("quadratic_drag", ("body",), central=True)
 def quadratic_drag(model, site, p, ctx):
-    return wrenches(model, ctx, site.bodies, -p["coefficient"] * speed_times(com_velocity(ctx, site.bodies)))
+    v = com_velocity(ctx, site.bodies)
+    return wrenches(model, ctx, site.bodies, -p["coefficient"] * speed_times(v))
