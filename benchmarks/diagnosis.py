@@ -77,6 +77,8 @@ def run_case(name: str, confirm: int, seed: int) -> dict:
         "winner": f"{w.effect}@{w.target}" if w else None,
         # the true effect acts exactly like the winner on these data (same score column)
         "true_same_as": row.same_as if row is not None else None,
+        # the true effect's evidence ties the winner's (ΔELPD and ΔLFO within 4): shared rank
+        "true_tied_with": row.tied_with if row is not None else None,
         "verdict": diag.verdict,
         "rms_before": diag.rms_sigma,
         "rms_after": w.rms_after if w else (row.rms_after if row else None),

@@ -53,6 +53,7 @@ class Ranked:
     fitted: dict | None = None
     snippet: str | None = None
     same_as: str | None = None  # "effect@target" of a better ranked candidate that acts alike
+    tied_with: str | None = None  # "effect@target" of the winner whose evidence this one ties
     note: str = ""
 
 
@@ -448,7 +449,7 @@ def tie_twins(ranked: list[Ranked]) -> list[Ranked]:
     for r in ranked:
         if r.same_as:
             continue
-        rank += 1
+        rank += 0 if r.tied_with else 1
         key = f"{r.effect}@{r.target}"
         for t in [r] + [t for t in ranked if t.same_as == key]:
             t.rank = rank
@@ -549,6 +550,16 @@ def order_by_evidence(confirmed: list[Ranked]) -> list[Ranked]:
     return sorted(tied, key=lambda r: -(r.delta_lfo or 0.0)) + rest
 
 
+def evidence_ties(winner: Ranked, confirmed: list[Ranked]) -> list[Ranked]:
+    """Confirmed candidates the evidence cannot separate from the winner: ΔELPD and ΔLFO both
+    within ``ELPD_TIE`` (e.g. linear and quadratic drag on a throw whose speed barely varies).
+    They share the winner's rank: the winner is named (``refine`` adds one effect), but the
+    table does not claim an order the data do not give."""
+    return [r for r in confirmed if r is not winner
+            and winner.delta_elpd - r.delta_elpd < ELPD_TIE
+            and abs((winner.delta_lfo or 0.0) - (r.delta_lfo or 0.0)) < ELPD_TIE]
+
+
 def _snippet(before: str, after: str) -> str:
     """The lines ``after`` adds to ``before`` (the .phys text to paste)."""
     import difflib
@@ -592,6 +603,8 @@ def diagnose(model, idata, *, confirm_top: int = 2, alpha: float = 0.05, outdir=
             winner = confirmed[0]
             # final order: confirmed effects by evidence (ΔELPD), then the rest by score
             ranked = confirmed + [r for r in ranked if not r.confirmed]
+            for r in evidence_ties(winner, confirmed):
+                r.tied_with = f"{winner.effect}@{winner.target}"
     ranked = tie_twins(ranked)
     t2 = time.perf_counter()
     top = ranked[0] if ranked else None
@@ -599,9 +612,7 @@ def diagnose(model, idata, *, confirm_top: int = 2, alpha: float = 0.05, outdir=
         verdict = (f"missing effect: {winner.effect} on {winner.target} (score p = {p_value_text(winner)}; "
                    f"ΔELPD {winner.delta_elpd:+.1f} ± {winner.delta_elpd_se:.1f}; residual RMS "
                    f"{winner.rms_before:.2f}σ → {winner.rms_after:.2f}σ)")
-        rivals = [r for r in ranked if r is not winner and r.confirmed
-                  and winner.delta_elpd - r.delta_elpd < ELPD_TIE
-                  and abs((winner.delta_lfo or 0.0) - (r.delta_lfo or 0.0)) < ELPD_TIE]
+        rivals = [r for r in ranked if r.tied_with]
         twins = [r for r in ranked if r.same_as == f"{winner.effect}@{winner.target}"]
         if twins:
             verdict += ("; on these data it acts exactly like " +

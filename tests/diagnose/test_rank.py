@@ -180,6 +180,30 @@ def test_twins_follow_their_representative_and_share_its_rank():
                                                  ("joint_friction", 2)]
 
 
+def test_candidates_whose_evidence_ties_the_winner_share_its_rank():
+    """ΔELPD and ΔLFO both within 4 of the winner's: a tie, sharing rank 1; a candidate 14
+    behind in ΔLFO is ranked after, even with a higher ΔELPD."""
+    from physdsl.diagnose.rank import Ranked, evidence_ties, order_by_evidence, tie_twins
+
+    def row(effect, elpd, lfo):
+        r = Ranked(0, "effect", effect, "ball", 1.0, 0.1, 1, confirmed=True)
+        r.delta_elpd, r.delta_lfo = elpd, lfo
+        return r
+
+    rows = [row("quadratic_drag", 851.8, 2090.6), row("linear_drag", 851.2, 2094.0),
+            row("wind", 850.0, 2091.0), row("magnus", 853.0, 2080.0)]
+    confirmed = order_by_evidence(rows)
+    winner = confirmed[0]
+    assert winner.effect == "linear_drag"  # best ΔLFO among the ΔELPD-tied
+    ties = evidence_ties(winner, confirmed)
+    assert [r.effect for r in ties] == ["wind", "quadratic_drag"]
+    for r in ties:
+        r.tied_with = "linear_drag@ball"
+    out = tie_twins(confirmed)
+    assert [(r.effect, r.rank) for r in out] == [("linear_drag", 1), ("wind", 1),
+                                                 ("quadratic_drag", 1), ("magnus", 2)]
+
+
 def test_a_posterior_wider_than_its_prior_is_flagged(quadratic):
     """Laplace draws with a floored curvature (variance ~1e10) are no posterior: flagged, and
     the good fit is not."""
