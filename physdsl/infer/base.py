@@ -18,7 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import UsageError
-from ..physics.forward import FORWARD_MODE_MAX
+from ..physics.forward import FORWARD_MODE_MAX, enclosing, jacobian, prune
 
 BACKENDS: dict[str, "Backend"] = {}
 
@@ -138,18 +138,23 @@ def safe_logdensity(fn):
 
 
 def _value_and_grad(fn, x, data):
-    """``fn(x, data)`` and its gradient in ``x``: by forward mode (one tangent per dimension, all
-    in one vmapped jvp) for at most ``FORWARD_MODE_MAX`` dimensions, else by reverse mode.
+    """``fn(x, data)`` and its gradient in ``x``: by forward mode (one tangent per dimension) for
+    at most ``FORWARD_MODE_MAX`` dimensions, else by reverse mode.
 
     The rollout's derivatives are forward-mode anyway (``simulator.forward_mode``); carrying the
     few tangents on through the interpolation and the likelihood leaves no reverse pass at all,
     which traces and compiles to fewer, fused kernels (no scatter-adds, no transposed products)
-    and runs no slower for the handful of unknowns of a physical scene.
+    and runs no slower for the handful of unknowns of a physical scene. The tangents are read
+    off ``fn``'s jaxpr (``forward.jacobian``): numpyro's handlers, distributions and whatever
+    does not depend on ``x`` are then traced once, plainly, not under a vmapped jvp.
     """
     if x.size > FORWARD_MODE_MAX:
         return jax.value_and_grad(fn)(x, data)
-    basis = np.eye(x.size, dtype=x.dtype)  # a constant, not ops to trace
-    return jax.vmap(lambda t: jax.jvp(lambda y: fn(y, data), (x,), (t,)), out_axes=(None, 0))(basis)
+    leaves, tree = jax.tree_util.tree_flatten((x, data))
+    with enclosing():  # the rollout inline: its loops take these tangents
+        closed = jax.make_jaxpr(lambda *xs: fn(*jax.tree_util.tree_unflatten(tree, xs)))(*leaves)
+    (v,), (g,) = jacobian(prune(closed)[0], leaves, [0])
+    return v, jnp.zeros(x.shape, v.dtype) if g is None else g
 
 
 def _zero_cotangent(a):

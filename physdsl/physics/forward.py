@@ -11,6 +11,8 @@ times over, to find which carries have tangents and which are batched).
 """
 from __future__ import annotations
 
+import contextlib
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -19,6 +21,19 @@ core = jax.extend.core
 
 # at most this many scalar unknowns: derivatives by forward mode; more: reverse mode
 FORWARD_MODE_MAX = 24
+_ENCLOSING = [0]  # > 0 while a caller traces a function whose Jacobian it reads off (``enclosing``)
+
+
+@contextlib.contextmanager
+def enclosing():
+    """Within this block ``forward_mode(f)`` is ``f`` itself: for a caller that traces a larger
+    function and reads its forward-mode Jacobian off the whole jaxpr (``jacobian``), so the
+    rollout's loops take the caller's tangents directly (traced once, no Jacobian to multiply)."""
+    _ENCLOSING[0] += 1
+    try:
+        yield
+    finally:
+        _ENCLOSING[0] -= 1
 
 
 def forward_mode(f):
@@ -26,6 +41,8 @@ def forward_mode(f):
     Jacobian with respect to the float leaves of ``values`` that ``f`` reads (others get no
     tangent column)."""
     def apply(values):
+        if _ENCLOSING[0]:
+            return f(values)
         leaves, in_tree = jax.tree_util.tree_flatten(values)
         closed, shape = jax.make_jaxpr(lambda *xs: f(jax.tree_util.tree_unflatten(in_tree, xs)),
                                        return_shape=True)(*leaves)
@@ -98,7 +115,7 @@ def jacobian(closed, leaves: list, cols: list[int]):
         if any(v in tenv for v in eqn.invars if isinstance(v, core.Var)):
             _scan(eqn, env, tenv, P)
         else:  # no tangent reaches it
-            _stretch([eqn], env, tenv, needed[k])
+            _evaluate([eqn], env, needed[k])
     _stretch(stretch, env, tenv, needed[-1] if jaxpr.eqns else set())
     read = lambda v: v.val if isinstance(v, core.Literal) else env[v]  # noqa: E731
     return ([read(v) for v in jaxpr.outvars],
@@ -116,22 +133,26 @@ def _needed_after(jaxpr) -> list[set]:
 
 
 def _stretch(eqns, env, tenv, needed) -> None:
-    """Evaluate loop-free equations, their tangents by one vmapped jvp."""
+    """Evaluate loop-free equations, their tangents by one vmapped jvp of those that read a
+    tangent (the others, e.g. constant masses, are evaluated plainly and get no tangent: a
+    zero tangent would be carried into the next loop as if it were not known to be zero)."""
     if not eqns:
         return
-    defined, ins = set(), []
+    dep = {v for eqn in eqns for v in eqn.invars if isinstance(v, core.Var) and v in tenv}
+    plain, diff = [], []
     for eqn in eqns:
-        ins += [v for v in eqn.invars if isinstance(v, core.Var) and v not in defined
-                and v not in ins]
-        defined.update(eqn.outvars)
-    outs = [v for eqn in eqns for v in eqn.outvars if v in needed]
-    info = core.DebugInfo("forward_mode", "a stretch of the rollout", None, None)
-    fn = core.jaxpr_as_fun(core.ClosedJaxpr(core.Jaxpr([], ins, outs, eqns, debug_info=info), []))
+        if any(isinstance(v, core.Var) and v in dep for v in eqn.invars):
+            dep.update(eqn.outvars)
+            diff.append(eqn)
+        else:
+            plain.append(eqn)
+    _evaluate(plain, env, needed | {v for eqn in diff for v in eqn.invars
+                                    if isinstance(v, core.Var)})
+    if not diff:
+        return
+    fn, ins, outs = _function(diff, needed)
     prim = [env[v] for v in ins]
     dif = [k for k, v in enumerate(ins) if v in tenv]
-    if not dif:
-        env.update(zip(outs, fn(*prim)))
-        return
 
     def f(*xs):
         args = list(prim)
@@ -145,6 +166,27 @@ def _stretch(eqns, env, tenv, needed) -> None:
         env[v] = r
         if _is_float(r):
             tenv[v] = d
+
+
+def _function(eqns, needed):
+    """(function of the inputs ``eqns`` read but do not define, those inputs, the outputs in
+    ``needed``) of a list of loop-free equations."""
+    defined, ins = set(), []
+    for eqn in eqns:
+        ins += [v for v in eqn.invars if isinstance(v, core.Var) and v not in defined
+                and v not in ins]
+        defined.update(eqn.outvars)
+    outs = [v for eqn in eqns for v in eqn.outvars if v in needed]
+    info = core.DebugInfo("forward_mode", "a stretch of the rollout", None, None)
+    fn = core.jaxpr_as_fun(core.ClosedJaxpr(core.Jaxpr([], ins, outs, eqns, debug_info=info), []))
+    return fn, ins, outs
+
+
+def _evaluate(eqns, env, needed) -> None:
+    """Evaluate equations no tangent reaches; only the values in ``needed`` are kept."""
+    if eqns:
+        fn, ins, outs = _function(eqns, needed)
+        env.update(zip(outs, fn(*[env[v] for v in ins])))
 
 
 def _scan(eqn, env, tenv, P) -> None:
