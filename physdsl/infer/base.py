@@ -18,7 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import UsageError
-from ..physics.forward import FORWARD_MODE_MAX, enclosing, jacobian, prune
+from ..physics.forward import FORWARD_MODE_MAX, enclosing, inline_calls, jacobian, prune
 
 BACKENDS: dict[str, "Backend"] = {}
 
@@ -153,7 +153,7 @@ def _value_and_grad(fn, x, data):
     leaves, tree = jax.tree_util.tree_flatten((x, data))
     with enclosing():  # the rollout inline: its loops take these tangents
         closed = jax.make_jaxpr(lambda *xs: fn(*jax.tree_util.tree_unflatten(tree, xs)))(*leaves)
-    (v,), (g,) = jacobian(prune(closed)[0], leaves, [0])
+    (v,), (g,) = jacobian(prune(inline_calls(closed))[0], leaves, [0])
     return v, jnp.zeros(x.shape, v.dtype) if g is None else g
 
 

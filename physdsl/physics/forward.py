@@ -7,7 +7,10 @@ transposing that linear rule. ``f``'s Python is traced once, into a jaxpr pruned
 reads, and the Jacobian is read off that jaxpr directly: each stretch of equations between loops
 by one vmapped jvp, each loop as a new scan whose body is the vmapped jvp of the old body with
 every tangent an explicit carry (JAX's own jvp and vmap of a scan trace its body four or five
-times over, to find which carries have tangents and which are batched).
+times over, to find which carries have tangents and which are batched). Small jit calls (e.g.
+``jnp.where``'s) are inlined first. A caller that differentiates a larger function the same way
+(the log density, ``infer.base``) traces it within ``enclosing()``: the rollout is then inline
+and its loops take the caller's tangents.
 """
 from __future__ import annotations
 
@@ -46,7 +49,7 @@ def forward_mode(f):
         leaves, in_tree = jax.tree_util.tree_flatten(values)
         closed, shape = jax.make_jaxpr(lambda *xs: f(jax.tree_util.tree_unflatten(in_tree, xs)),
                                        return_shape=True)(*leaves)
-        closed, used = prune(closed)
+        closed, used = prune(inline_calls(closed))
         run_flat = core.jaxpr_as_fun(closed)
         out_tree = jax.tree_util.tree_structure(shape)
         cols = [i for i, x in enumerate(leaves) if used[i] and _is_float(x)]
@@ -87,6 +90,46 @@ def prune(closed):
             live.update(v for v in eqn.invars if isinstance(v, core.Var))
     pruned = core.ClosedJaxpr(jaxpr.replace(eqns=kept[::-1]), closed.consts)
     return pruned, [v in live for v in jaxpr.invars]
+
+
+def inline_calls(closed):
+    """``closed`` with its jit calls (e.g. ``jnp.where``'s) replaced by their equations: a call
+    would be transformed (jvp, vmap) as a jaxpr of its own and lowered as a function of its own,
+    for a handful of elementwise operations."""
+    jaxpr = closed.jaxpr
+    if not any(_is_call(e) for e in jaxpr.eqns):
+        return closed
+    sub: dict = {}
+    eqns: list = []
+    _inline(jaxpr.eqns, sub, eqns, fresh=False)
+    outvars = [sub.get(v, v) if isinstance(v, core.Var) else v for v in jaxpr.outvars]
+    return core.ClosedJaxpr(jaxpr.replace(eqns=eqns, outvars=outvars), closed.consts)
+
+
+def _inline(eqns, sub: dict, out: list, fresh: bool) -> None:
+    """Append ``eqns`` to ``out`` with calls replaced by their equations; ``sub`` maps variables
+    of this level to atoms of the result; ``fresh``: new variables (a call's body may be shared)."""
+    read = lambda v: sub.get(v, v) if isinstance(v, core.Var) else v  # noqa: E731
+    for eqn in eqns:
+        invars = [read(v) for v in eqn.invars]
+        if _is_call(eqn):
+            inner = eqn.params["jaxpr"].jaxpr
+            local = dict(zip(inner.invars, invars))
+            _inline(inner.eqns, local, out, fresh=True)
+            for o, i in zip(eqn.outvars, inner.outvars):
+                if not isinstance(o, core.DropVar):
+                    sub[o] = local.get(i, i) if isinstance(i, core.Var) else i
+            continue
+        outs = eqn.outvars
+        if fresh:
+            outs = [v if isinstance(v, core.DropVar) else core.Var(v.aval) for v in eqn.outvars]
+            sub.update((v, w) for v, w in zip(eqn.outvars, outs) if not isinstance(v, core.DropVar))
+        out.append(eqn.replace(invars=invars, outvars=outs))
+
+
+def _is_call(eqn) -> bool:
+    """A jit call with no constants of its own (those are inlined)."""
+    return eqn.primitive.name in ("pjit", "jit") and not eqn.params["jaxpr"].consts
 
 
 def jacobian(closed, leaves: list, cols: list[int]):
@@ -204,7 +247,8 @@ def _scan(eqn, env, tenv, P) -> None:
     dinit = [tans[nc + k] if tans[nc + k] is not None
              else jnp.zeros((P,) + jnp.shape(init[k]), jnp.result_type(init[k])) for k in fk]
     dxs = [jnp.moveaxis(tans[nc + nk + k], 0, 1) for k in dx]  # (T, P, ...)
-    body = core.jaxpr_as_fun(prune(p["jaxpr"])[0])  # (a step's unread loads, e.g. torques)
+    # (pruned of a step's unread loads, e.g. torques)
+    body = core.jaxpr_as_fun(prune(inline_calls(p["jaxpr"]))[0])
 
     def step(carry, x):
         (c, dcarry), (xv, dxv) = carry, x

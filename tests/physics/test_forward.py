@@ -2,6 +2,7 @@
 (stretches of equations by one vmapped jvp, loops as scans with explicit tangent carries) equal
 JAX's own, for loops with integer carries, differentiated constants and scanned-over inputs."""
 import jax
+import jax.extend
 import jax.numpy as jnp
 import numpy as np
 
@@ -47,3 +48,22 @@ def test_gradient_matches_jax_under_jit_and_vmap():
         np.testing.assert_allclose(g[k], ref[k], rtol=1e-12, atol=1e-12)
     batch = jax.vmap(lambda a: forward_mode(rollout)({**VALS, "a": a})["s"])(jnp.array([0.5, 0.9]))
     np.testing.assert_allclose(batch[1], rollout(VALS)["s"], rtol=1e-14)
+
+
+def test_inline_calls_replaces_nested_and_shared_jit_calls():
+    from physdsl.physics.forward import inline_calls
+
+    inner = jax.jit(lambda u, v: (jnp.where(u > 0, u * v, v), u, 2.0))  # a pass-through, a literal
+
+    def f(x, y):
+        a, b, c = inner(x, y)
+        d, _, _ = inner(a + b, y)  # the same jaxpr twice: fresh variables
+        return jax.jit(lambda z: inner(z, z)[0] * c)(d), b
+
+    x, y = jnp.array([0.5, -1.0, 2.0]), jnp.array([3.0, 4.0, -5.0])
+    closed = jax.make_jaxpr(f)(x, y)
+    flat = inline_calls(closed)
+    assert any(e.primitive.name in ("jit", "pjit") for e in closed.jaxpr.eqns)
+    assert not any(e.primitive.name in ("jit", "pjit") for e in flat.jaxpr.eqns)
+    for got, want in zip(jax.extend.core.jaxpr_as_fun(flat)(x, y), f(x, y)):
+        np.testing.assert_array_equal(got, want)
