@@ -591,8 +591,10 @@ def diagnose(model, idata, *, confirm_top: int = 2, alpha: float = 0.05, outdir=
     mark_twins(ranked, {c.key: s.direction for c, s in scored if s.direction is not None})
     for r in ranked:
         if r.same_as:
-            r.note = (f"changes the predictions exactly like {r.same_as.replace('@', ' on ')}: "
-                      "these data cannot tell them apart" + (f"; {r.note}" if r.note else ""))
+            r.note = (f"switched on a little, it changes the predictions exactly like "
+                      f"{r.same_as.replace('@', ' on ')} (same score direction): the score test "
+                      "cannot tell them apart, and only the first is refitted"
+                      + (f"; {r.note}" if r.note else ""))
     n_tests = max(len(ranked), 1)
     significant = [r for r in ranked if r.p_value < alpha / n_tests]
     winner = None
@@ -615,8 +617,10 @@ def diagnose(model, idata, *, confirm_top: int = 2, alpha: float = 0.05, outdir=
         rivals = [r for r in ranked if r.tied_with]
         twins = [r for r in ranked if r.same_as == f"{winner.effect}@{winner.target}"]
         if twins:
-            verdict += ("; on these data it acts exactly like " +
-                        ", ".join(f"{r.effect} on {r.target}" for r in twins))
+            verdict += ("; switched on a little it acts on these data exactly like " +
+                        ", ".join(f"{r.effect} on {r.target}" for r in twins) +
+                        " (the score test cannot tell them apart; some may part at larger "
+                        "strengths, as quadratic and linear drag on a swing do)")
         if rivals:
             verdict += ("; these data barely tell it from " +
                         ", ".join(f"{r.effect} on {r.target}" for r in rivals) +
