@@ -148,6 +148,7 @@ def jacobian(closed, leaves: list, cols: list[int]):
             tenv[v] = basis[:, off:off + n].reshape((P,) + jnp.shape(x)).astype(jnp.result_type(x))
             off += n
     needed = _needed_after(jaxpr)
+    reach = _columns(jaxpr, leaves, cols)
     stretch: list = []
     for k, eqn in enumerate(jaxpr.eqns):
         if eqn.primitive.name != "scan":
@@ -156,13 +157,85 @@ def jacobian(closed, leaves: list, cols: list[int]):
         _stretch(stretch, env, tenv, needed[k - 1] if k else set())
         stretch = []
         if any(v in tenv for v in eqn.invars if isinstance(v, core.Var)):
-            _scan(eqn, env, tenv, P)
+            _scan_columns(eqn, env, tenv, P, sorted(_coarse(reach, eqn.invars)))
         else:  # no tangent reaches it
             _evaluate([eqn], env, needed[k])
     _stretch(stretch, env, tenv, needed[-1] if jaxpr.eqns else set())
     read = lambda v: v.val if isinstance(v, core.Literal) else env[v]  # noqa: E731
     return ([read(v) for v in jaxpr.outvars],
             [None if isinstance(v, core.Literal) else tenv.get(v) for v in jaxpr.outvars])
+
+
+def _columns(jaxpr, leaves, cols) -> dict:
+    """Which tangent columns may reach each variable: a tuple of column sets per element for
+    vectors and scalars (kept through splits, slices and reshapes, so the pieces of a flat
+    vector of unknowns stay apart), else one set for the whole array."""
+    reach: dict = {}
+    off = 0
+    for i, (v, x) in enumerate(zip(jaxpr.invars, leaves)):
+        if i in cols:
+            n = int(np.size(x))
+            reach[v] = (tuple(frozenset([off + k]) for k in range(n)) if np.ndim(x) <= 1
+                        else frozenset(range(off, off + n)))
+            off += n
+    for eqn in jaxpr.eqns:
+        ins = [reach.get(v) if isinstance(v, core.Var) else None for v in eqn.invars]
+        if all(r is None for r in ins):
+            continue
+        name, r = eqn.primitive.name, ins[0]
+        outs = [v for v in eqn.outvars if not isinstance(v, core.DropVar)]
+        if isinstance(r, tuple) and name == "split" and eqn.params["axis"] == 0:
+            cuts = np.cumsum([0] + list(eqn.params["sizes"]))
+            for v, a, b in zip(eqn.outvars, cuts[:-1], cuts[1:]):
+                reach[v] = r[a:b]
+        elif isinstance(r, tuple) and name == "slice" and len(r) == eqn.invars[0].aval.size \
+                and eqn.invars[0].aval.ndim == 1 and not eqn.params["strides"]:
+            reach[eqn.outvars[0]] = r[eqn.params["start_indices"][0]:eqn.params["limit_indices"][0]]
+        elif isinstance(r, tuple) and name in ("reshape", "squeeze", "convert_element_type") \
+                and eqn.outvars[0].aval.ndim <= 1:
+            reach[eqn.outvars[0]] = r
+        else:
+            u = frozenset().union(*[_coarse(reach, [v]) for v in eqn.invars])
+            reach.update((v, u) for v in outs)
+    return reach
+
+
+def _coarse(reach, atoms) -> frozenset:
+    """The columns that may reach any of ``atoms``."""
+    u: frozenset = frozenset()
+    for v in atoms:
+        r = reach.get(v) if isinstance(v, core.Var) else None
+        if r is not None:
+            u = u.union(*r) if isinstance(r, tuple) else u | r
+    return u
+
+
+def _scan_columns(eqn, env, tenv, P, used) -> None:
+    """``_scan`` carrying only the tangent columns ``used`` that reach it (e.g. not a noise
+    scale's), its tangents then padded back to all P columns with zeros."""
+    if len(used) == P:
+        return _scan(eqn, env, tenv, P)
+    idx = np.asarray(used)
+    runs = np.split(idx, np.flatnonzero(np.diff(idx) > 1) + 1)
+
+    def take(t):  # the used columns by slices (no gather)
+        parts = [jax.lax.slice_in_dim(t, int(r[0]), int(r[-1]) + 1) for r in runs]
+        return jnp.concatenate(parts) if len(parts) > 1 else parts[0]
+
+    sub = {v: take(tenv[v]) for v in eqn.invars if isinstance(v, core.Var) and v in tenv}
+    _scan(eqn, env, sub, len(used))
+    for v in eqn.outvars:
+        if v not in sub or isinstance(v, core.DropVar):
+            continue
+        d, pieces, at, j = sub[v], [], 0, 0
+        for run in runs:
+            if run[0] > at:
+                pieces.append(jnp.zeros((run[0] - at,) + d.shape[1:], d.dtype))
+            pieces.append(d[j:j + len(run)])
+            at, j = run[-1] + 1, j + len(run)
+        if at < P:
+            pieces.append(jnp.zeros((P - at,) + d.shape[1:], d.dtype))
+        tenv[v] = jnp.concatenate(pieces) if len(pieces) > 1 else pieces[0]
 
 
 def _needed_after(jaxpr) -> list[set]:

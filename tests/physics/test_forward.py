@@ -67,3 +67,23 @@ def test_inline_calls_replaces_nested_and_shared_jit_calls():
     assert not any(e.primitive.name in ("jit", "pjit") for e in flat.jaxpr.eqns)
     for got, want in zip(jax.extend.core.jaxpr_as_fun(flat)(x, y), f(x, y)):
         np.testing.assert_array_equal(got, want)
+
+
+def test_jacobian_scan_carries_only_the_columns_that_reach_it():
+    """x[0] and x[4] never reach the loop (pieces of a flat vector, as a noise scale's): the
+    loop carries 2 tangent columns, not 5, and the Jacobian still equals JAX's."""
+    from physdsl.physics.forward import jacobian, prune
+
+    def f(x):
+        a, b, c = jnp.split(x, [1, 3])
+        s = jax.lax.scan(lambda s, _: (s * b[0] + jnp.sin(s) * b[1], None), 1.0, None, length=5)[0]
+        return jnp.exp(a[0]) * s + jnp.sum(c ** 2)
+
+    x = jnp.array([0.3, 0.9, -0.4, 1.5, 2.0])
+    closed = jax.make_jaxpr(f)(x)
+    (v,), (g,) = jacobian(prune(closed)[0], [x], [0])
+    np.testing.assert_allclose(v, f(x), rtol=1e-15)
+    np.testing.assert_allclose(g, jax.jacfwd(f)(x), rtol=1e-13)
+    scans = [e for e in jax.make_jaxpr(lambda x: jacobian(prune(closed)[0], [x], [0]))(x).eqns
+             if e.primitive.name == "scan"]
+    assert [e.outvars[1].aval.shape[0] for e in scans] == [2]  # (P, ...) tangent carry
