@@ -262,6 +262,9 @@ CASES = {
                           _swing_times(), HINGE, seed=2),
     "joint_friction": Case(PENDULUM, "joint_friction", ("hinge",), 3e-3, {"hinge.initial": 0.7},
                            _swing_times(), HINGE, seed=3),
+    # a torsion spring 5% of gravity's stiffness (m g L = 0.98 N m/rad): the swing is faster
+    "joint_spring": Case(PENDULUM, "joint_spring", ("hinge",), 0.05, {"hinge.initial": 0.7},
+                         _swing_times(), HINGE, seed=8),
     # seed 4 drew noise that puts the truth 2.4 sd from the data's own best estimate
     # ((J^T J)^-1 J^T eps at the truth), so no correct 90% interval could hold it
     "restitution": Case(BOUNCE, "restitution", ("floor", "ball"), 0.8, {"h0": 0.8},

@@ -16,7 +16,7 @@ from .conftest import CASES, EQUIVALENT, fit_case, physical_order
 pytestmark = pytest.mark.slow
 
 PHYSICAL = ["quadratic_drag", "linear_drag", "wind", "joint_damping", "joint_friction",
-            "restitution", "contact_friction", "rolling_resistance", "damper"]
+            "joint_spring", "restitution", "contact_friction", "rolling_resistance", "damper"]
 
 
 def _row(diag, key):

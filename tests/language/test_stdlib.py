@@ -26,6 +26,8 @@ TABLE = {
     "joint_damping": ("joint", {"coefficient": ("N*m*s/rad", (), None, 0.0, True)}),
     "joint_friction": ("joint", {"torque": ("N*m", (), None, 0.0, True),
                                  "smoothing": ("rad/s", (), 0.01, None, False)}),
+    "joint_spring": ("joint", {"stiffness": ("N*m/rad", (), None, 0.0, True),
+                               "rest": ("rad", (), 0.0, None, False)}),
     "contact_friction": ("pair", {"coefficient": ("1", (), None, 0.0, True)}),
     "restitution": ("pair", {"coefficient": ("1", (), 1.0, 1.0, True)}),
     "rolling_resistance": ("pair", {"coefficient": ("m", (), None, 0.0, True)}),

@@ -86,3 +86,24 @@ def test_slider_spring_oscillator():
     out = build_simulator(s).simulate({})
     w = np.sqrt(k / m)
     np.testing.assert_allclose(out.joint_pos[:, 0], A * np.cos(w * np.asarray(out.t)), atol=1e-9)
+
+
+def test_slider_joint_spring_oscillator():
+    """A joint spring on a horizontal slider: x = rest + (A - rest) cos(sqrt(k/m) t)."""
+    k, m, A, rest = 40.0, 0.5, 0.1, 0.02
+    block = sphere("block", r=0.05, mass=m, pos=(0, 0, 0))
+    j = Joint("rail", "slider", "world", "block", axis=c((1, 0, 0)), initial=c(A))
+    sp = effect("joint_spring", "rail", stiffness=k, rest=rest)
+    s = scene([block], [j], [gravity(), sp], dt=1e-3, duration=2.0, integrator="rk4")
+    out = build_simulator(s).simulate({})
+    expected = rest + (A - rest) * np.cos(np.sqrt(k / m) * np.asarray(out.t))
+    np.testing.assert_allclose(out.joint_pos[:, 0], expected, atol=1e-9)
+
+
+def test_joint_spring_on_a_ball_joint_is_refused():
+    from physdsl.errors import ModelError
+
+    bob = sphere("bob", r=0.05, mass=0.2, pos=(0, 0, 0.5))
+    j = Joint("socket", "ball", "world", "bob", anchor=c((0, 0, 1.0)))
+    with pytest.raises(ModelError, match="hinges and sliders"):
+        build_simulator(scene([bob], [j], [gravity(), effect("joint_spring", "socket", stiffness=1.0)]))

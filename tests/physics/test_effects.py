@@ -36,6 +36,7 @@ CASES = {
                                  "attachment": (0.0, 0.0, 0.05)}, 0.0, 0.5),
     "joint_damping": ("hinge", {"coefficient": "s"}, 0.0, 0.2),
     "joint_friction": ("hinge", {"torque": "s", "smoothing": 0.01}, 0.0, 0.1),
+    "joint_spring": ("hinge", {"stiffness": "s", "rest": 0.1}, 0.0, 2.0),
     # torque keeps its default 0: the strength (force) alone cannot switch a torque off
     "constant_force": ("ball", {"force": "s", "torque": (0.0, 0.0, 0.0)}, np.zeros(3), np.array([1.0, 2.0, 3.0])),
     "control_force": ("hinge", {"gain": "s"}, 0.0, 1.0),
