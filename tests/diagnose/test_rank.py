@@ -247,15 +247,15 @@ def test_where_laplace_fails_metropolis_starts_at_the_same_modes(quadratic, monk
 
 
 def test_infer_starts_at_given_positions(quadratic):
-    """``positions`` replaces the prior draws and their optimisation: one Metropolis step
-    from a far point stays near it; a wrong shape is a usage error."""
+    """``positions`` replaces the prior draws and their optimisation: a few Metropolis steps
+    from a far point stay near it; a wrong shape is a usage error."""
     from physdsl.errors import UsageError
     from physdsl.infer.problem import model_problem
 
     model = quadratic.model
     dim = model_problem(model).dim
     far = np.tile(np.linspace(5.0, 6.0, dim), (2, 1))
-    idata = model.infer(backend="rmh", positions=far, chains=2, warmup=1, samples=1,
+    idata = model.infer(backend="rmh", positions=far, chains=2, warmup=1, samples=2,
                         progress=False)
     v = idata.posterior["ball.velocity"].values[:, 0]
     assert np.all(v > 4.0)  # the prior is normal((3, 0, 12), 2): (x, y) ~ 5-6 only from the start
