@@ -43,7 +43,7 @@ def infer(model, backend: str = "nuts", settings: Settings | None = None, outdir
     ckpt = _load_checkpoint(ckpt_path, fingerprint) if (resume and ckpt_path) else None
 
     key = jax.random.PRNGKey(settings.seed)
-    k_init, k_warm, k_sample = jax.random.split(key, 3)
+    _, k_warm, k_sample = jax.random.split(key, 3)  # the first key initialises (``starts``)
     with stages.stage("compile") as st:
         if positions is not None:
             problem, positions = model_problem(model), jax.numpy.asarray(positions)
