@@ -17,6 +17,7 @@ from __future__ import annotations
 import contextlib
 
 import jax
+import jax.extend
 import jax.numpy as jnp
 import numpy as np
 

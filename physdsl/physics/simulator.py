@@ -14,7 +14,6 @@ import warnings
 from typing import NamedTuple
 
 import jax
-import jax.extend
 import jax.numpy as jnp
 import numpy as np
 
@@ -25,8 +24,6 @@ from .integrate import State, kinematics, step
 from .model import Model, build_model
 from .params import evaluate_params
 from .rows import place
-
-
 
 
 class Rollout(NamedTuple):
