@@ -250,6 +250,22 @@ class Model:
             out[o.obs.name] = jnp.sum(jnp.where(d["mask"], lp, 0.0), axis=-1)
         return out
 
+    def standardized_residuals(self, values, preds, data=None):
+        """Every measured residual component over its noise scale, as one vector (0 where
+        masked): the likelihood is -1/2 of its square sum plus noise-scale terms, for normal
+        noise (``least_squares``)."""
+        data = self.data if data is None else data
+        return jnp.concatenate([
+            (self._residual(o.obs, preds[o.obs.name], data[o.obs.name])
+             / self.noise_scale(o.obs, values)).reshape(-1) for o in self.observed])
+
+    @property
+    def least_squares(self) -> bool:
+        """Whether the likelihood is a sum of squared standardised residuals (normal noise on
+        trajectories, no images): Gauss-Newton curvature then describes it."""
+        return (not self.images and bool(self.observed)
+                and all(o.obs.noise.kind != "student_t" for o in self.observed))
+
     @staticmethod
     def _residual(obs: Observation, pred, d):
         res = trajectory.residual(obs.quantity, pred, jnp.asarray(d["measured"]))

@@ -20,8 +20,6 @@ import numpy as np
 from jax.flatten_util import ravel_pytree
 from scipy import stats
 
-from ..observe import trajectory
-
 
 @dataclass(frozen=True)
 class ScoreResult:
@@ -40,13 +38,7 @@ class ScoreResult:
 
 def standardized_residuals(model, values, pred=None):
     """All measured residual components divided by their noise scale, as one vector."""
-    pred = model.predict(values) if pred is None else pred
-    parts = []
-    for o in model.observed:
-        res = trajectory.residual(o.obs.quantity, pred[o.obs.name], jnp.asarray(o.measured))
-        res = jnp.where(o.mask, res / model.noise_scale(o.obs, values), 0.0)
-        parts.append(res.reshape(-1))
-    return jnp.concatenate(parts)
+    return model.standardized_residuals(values, model.predict(values) if pred is None else pred)
 
 
 def jacobian(model, values: dict, nuisance: list[str], tested: list[str]):

@@ -58,6 +58,9 @@ class Problem(NamedTuple):
     model: Any  # the compiled Model (for backends that need the program itself)
     data: Any  # the measurements: the second argument of logdensity / to_constrained
     cache: dict  # compiled functions (taking data as an argument), shared by the structure
+    # (flat, data) -> (log p, gradient, Gauss-Newton matrix: an approximation of the negative
+    # Hessian, positive semi-definite), where the likelihood is least squares; else None
+    gauss_newton: Callable[[jax.Array, Any], tuple] | None = None
 
 
 class Backend:
@@ -100,10 +103,41 @@ def cached(problem: Problem, key, build: Callable):
 
 
 def value_and_grad_fn(problem: Problem):
-    """x -> (log density, gradient) at ``problem``'s data; compiled once per scene structure."""
+    """x -> (log density, gradient) at ``problem``'s data; compiled once per scene structure
+    (as part of ``gauss_newton_fn`` where that exists: one compile serves both)."""
+    gn = gauss_newton_fn(problem)
+    if gn is not None:
+        return lambda x: gn(x)[:2]
     vg = cached(problem, "vg", lambda: jax.jit(jax.value_and_grad(problem.logdensity)))
     data = problem.data
     return lambda x: vg(x, data)
+
+
+def gauss_newton_fn(problem: Problem):
+    """x -> (log density, gradient, Gauss-Newton matrix) at ``problem``'s data (see
+    ``Problem.gauss_newton``), compiled once per scene structure; None where unavailable."""
+    if problem.gauss_newton is None:
+        return None
+    gn = cached(problem, "gauss-newton", lambda: jax.jit(problem.gauss_newton))
+    data = problem.data
+    return lambda x: gn(x, data)
+
+
+def gauss_newton(logdensity, residuals, neg_log_prior):
+    """(x, data) -> (log p, gradient, J^T J + Hessian of -log prior) with J = d residuals / dx.
+
+    For a likelihood -1/2 |r|^2 (plus noise-scale terms), J^T J is the likelihood's curvature
+    without second derivatives of the physics (Gauss-Newton); the prior's (a small program with
+    no rollout) is exact. All from one forward-mode pass: the tangents that give the gradient
+    pass through the residuals, so their Jacobian costs no extra rollout.
+    """
+    def fn(x, data):
+        (v, r), (g, J) = _forward(lambda x, data: (logdensity(x, data), residuals(x, data)), x, data)
+        H = J.reshape(x.size, -1) @ J.reshape(x.size, -1).T + jax.hessian(neg_log_prior)(x)
+        ok = jnp.isfinite(v) & jnp.all(jnp.isfinite(g)) & jnp.all(jnp.isfinite(H))
+        return (jnp.where(ok, v, -jnp.inf), jnp.where(ok, g, 0.0), jnp.where(ok, H, 0.0))
+
+    return fn
 
 
 def bind(problem: Problem, data):
@@ -150,11 +184,19 @@ def _value_and_grad(fn, x, data):
     """
     if x.size > FORWARD_MODE_MAX:
         return jax.value_and_grad(fn)(x, data)
+    (v,), (g,) = _forward(lambda x, data: (fn(x, data),), x, data)
+    return v, g
+
+
+def _forward(fn, x, data):
+    """(outputs of ``fn(x, data)`` (a tuple), their derivatives in ``x``, (dim, *shape) each) by
+    forward mode read off ``fn``'s jaxpr, as ``_value_and_grad`` explains."""
     leaves, tree = jax.tree_util.tree_flatten((x, data))
     with enclosing():  # the rollout inline: its loops take these tangents
         closed = jax.make_jaxpr(lambda *xs: fn(*jax.tree_util.tree_unflatten(tree, xs)))(*leaves)
-    (v,), (g,) = jacobian(prune(inline_calls(closed))[0], leaves, [0])
-    return v, jnp.zeros(x.shape, v.dtype) if g is None else g
+    values, tangents = jacobian(prune(inline_calls(closed))[0], leaves, [0])
+    return values, [jnp.zeros((x.size,) + jnp.shape(v), v.dtype) if t is None else t
+                    for v, t in zip(values, tangents)]
 
 
 def _zero_cotangent(a):

@@ -18,7 +18,8 @@ from jax.flatten_util import ravel_pytree
 from numpyro.infer.util import constrain_fn, potential_energy, unconstrain_fn
 
 from ..errors import InferenceError
-from .base import Problem, cached, safe_logdensity, value_and_grad_fn
+from ..physics.forward import FORWARD_MODE_MAX
+from .base import Problem, cached, gauss_newton, safe_logdensity, value_and_grad_fn
 
 _PROBLEMS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 INIT_ROUNDS = 10  # rounds of prior draws tried before giving up on a finite start
@@ -38,9 +39,9 @@ def _build_problem(model) -> Problem:
                              "trajectory inference yet",
                              hint="give them a value, or fit shape from images with "
                                   "physdsl.render.inverse (Metropolis-within-Gibbs)")
-    logdensity, to_constrained, dim = model.cached("problem", lambda: _functions(model))
+    logdensity, to_constrained, dim, gn = model.cached("problem", lambda: _functions(model))
     data = jax.device_put(model.data)  # (jnp.asarray would compile a conversion per array)
-    return Problem(logdensity, to_constrained, dim, model, data, model.compiled.cache)
+    return Problem(logdensity, to_constrained, dim, model, data, model.compiled.cache, gn)
 
 
 def _functions(model):
@@ -61,7 +62,16 @@ def _functions(model):
     def to_constrained(x, data):
         return constrain_fn(model.numpyro_model, (data,), {}, unravel(x), return_deterministic=True)
 
-    return safe_logdensity(logdensity), to_constrained, dim
+    def residuals(x, data):  # standardised residuals; the prior program alone constrains x
+        values = constrain_fn(model.prior_values, (), {}, unravel(x))
+        return model.standardized_residuals(values, model.predict(values, data=data), data)
+
+    def neg_log_prior(x):
+        return potential_energy(model.prior_values, (), {}, unravel(x))
+
+    gn = (gauss_newton(logdensity, residuals, neg_log_prior)
+          if model.least_squares and dim <= FORWARD_MODE_MAX else None)
+    return safe_logdensity(logdensity), to_constrained, dim, gn
 
 
 def unraveler(layout):

@@ -26,7 +26,7 @@ def test_other_data_and_cutoff_reuse_every_compiled_function(projectile_model, t
 
     full = projectile_model.infer(**SETTINGS)  # compiles what the module has not yet
     sizes = _compiled_sizes(projectile_model)
-    assert {"vg", "posterior-pass"} <= set(sizes) and any(k[0] == "block" for k in sizes if
+    assert {"gauss-newton", "posterior-pass"} <= set(sizes) and any(k[0] == "block" for k in sizes if
                                                           isinstance(k, tuple))
 
     times = np.linspace(0.02, 0.5, 11)  # other times: the interpolation weights are data too
