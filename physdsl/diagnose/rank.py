@@ -55,6 +55,13 @@ class Ranked:
     same_as: str | None = None  # "effect@target" of a better ranked candidate that acts alike
     tied_with: str | None = None  # "effect@target" of the winner whose evidence this one ties
     note: str = ""
+    # pointwise differences to the fit without the effect (LOO per measurement time; log
+    # predictive density per time after the cut-off): the standard errors of ties
+    elpd_points: np.ndarray | None = field(default=None, repr=False)
+    lfo_points: np.ndarray | None = field(default=None, repr=False)
+
+    def to_dict(self) -> dict:
+        return {k: v for k, v in asdict(self).items() if k not in ("elpd_points", "lfo_points")}
 
 
 @dataclass
@@ -67,8 +74,8 @@ class Diagnosis:
 
     def to_dict(self) -> dict:
         return _clean({"verdict": self.verdict, "rms_sigma": self.rms_sigma,
-                       "winner": asdict(self.winner) if self.winner else None,
-                       "ranking": [asdict(r) for r in self.ranking], "seconds": self.seconds})
+                       "winner": self.winner.to_dict() if self.winner else None,
+                       "ranking": [r.to_dict() for r in self.ranking], "seconds": self.seconds})
 
     def table(self) -> str:
         head = (f"{'#':>2} {'candidate':<34} {'score':>9} {'p-value':>9} "
@@ -316,21 +323,22 @@ def loo_reliability(loo) -> str | None:
             "ΔELPD as indicative; the leave-future-out comparison does not rely on it")
 
 
-def lfo_score(model, idata_cut, cutoff: float) -> float:
-    """Log predictive density of the measurements after ``cutoff`` given a fit before it."""
+def lfo_points(model, idata_cut, cutoff: float) -> np.ndarray:
+    """Log predictive density of each measurement time after ``cutoff`` given a fit before it
+    (all observations in turn); their sum is the leave-future-out score."""
     from ..infer.output import pointwise_log_likelihood
 
     draws = posterior_draws(model, idata_cut, max_draws=100)
     import jax.numpy as jnp
 
     ll = pointwise_log_likelihood(model, {k: jnp.asarray(v) for k, v in draws.items()})
-    total = 0.0
+    points = []
     for o in model.observed:
         late = o.obs.times > cutoff
-        x = ll[o.obs.name][:, late]
+        x = np.asarray(ll[o.obs.name][:, late])
         m = x.max(axis=0)
-        total += float(np.sum(m + np.log(np.mean(np.exp(x - m), axis=0))))
-    return total
+        points.append(m + np.log(np.mean(np.exp(x - m), axis=0)))
+    return np.concatenate(points)
 
 
 FIT_DRAWS = 64  # Laplace draws per chain: enough for PSIS-LOO and 90% intervals; each draw
@@ -479,7 +487,7 @@ def confirm(model, idata, ranked: list[Ranked], cands: dict, k: int, base_rms: f
     times = np.concatenate([o.obs.times for o in model.observed])
     cutoff = float(times.min() + LFO_FRACTION * (times.max() - times.min()))
     try:
-        base_lfo = lfo_score(model, quick_fit(Model(model.scene, until=cutoff)), cutoff)
+        base_lfo = lfo_points(model, quick_fit(Model(model.scene, until=cutoff)), cutoff)
     except REFIT_FAILURES:
         base_lfo = None  # leave-future-out unavailable: judged on ΔELPD and RMS alone
     from .refine import CONSISTENT_RMS
@@ -515,12 +523,12 @@ def _refit(model, r: Ranked, cand: Candidate, base_loo, base_lfo, cutoff: float,
         r.note = fit.attrs["fit_note"]
     rep = check_model(new, fit)
     new_loo = combined_loo(fit)
-    diff = np.asarray(new_loo.loo_i) - np.asarray(base_loo.loo_i)
-    r.delta_elpd = float(diff.sum())
-    r.delta_elpd_se = float(np.sqrt(len(diff)) * diff.std())
+    r.elpd_points = np.asarray(new_loo.loo_i) - np.asarray(base_loo.loo_i)
+    r.delta_elpd, r.delta_elpd_se = float(r.elpd_points.sum()), _sum_se(r.elpd_points)
     if base_lfo is not None:
         new_cut = quick_fit(Model(new.scene, until=cutoff), start=start)
-        r.delta_lfo = lfo_score(new, new_cut, cutoff) - base_lfo
+        r.lfo_points = lfo_points(new, new_cut, cutoff) - base_lfo
+        r.delta_lfo = float(r.lfo_points.sum())
     r.rms_before, r.rms_after = base_rms, float(rep.rms_sigma)
     key = unknown_key(model.scene, cand)
     r.fitted = {"name": key, "median": float(np.median(fit.posterior[key].values)),
@@ -532,11 +540,26 @@ def _refit(model, r: Ranked, cand: Candidate, base_loo, base_lfo, cutoff: float,
                        and r.rms_after < 0.9 * base_rms)
 
 
-ELPD_TIE = 4.0  # ΔELPD differences below this are ties, settled by leave-future-out
+def _sum_se(points: np.ndarray) -> float:
+    """Standard error of the sum of pointwise values (as arviz's ``compare``)."""
+    return float(np.sqrt(points.size) * points.std())
+
+
+ELPD_TIE = 4.0  # differences below this are negligible however small their standard error
+
+
+def tie_margin(a: Ranked, b: Ranked, which: str) -> float:
+    """How far apart two candidates' ΔELPD (``which`` = "elpd") or ΔLFO ("lfo") may be and
+    still tie: twice the standard error of the summed pointwise differences between them (both
+    fits are scored on the same points), at least ``ELPD_TIE``."""
+    pa, pb = getattr(a, f"{which}_points"), getattr(b, f"{which}_points")
+    if pa is None or pb is None or np.shape(pa) != np.shape(pb):
+        return ELPD_TIE
+    return max(2.0 * _sum_se(np.asarray(pa) - np.asarray(pb)), ELPD_TIE)
 
 
 def order_by_evidence(confirmed: list[Ranked]) -> list[Ranked]:
-    """Confirmed candidates, best first: by ΔELPD, near-ties broken by ΔLFO.
+    """Confirmed candidates, best first: by ΔELPD, near-ties (``tie_margin``) broken by ΔLFO.
 
     Pointwise LOO barely separates effects that bend a trajectory alike over the fitted span
     (linear vs quadratic drag at nearly constant speed); predicting the future does.
@@ -544,20 +567,19 @@ def order_by_evidence(confirmed: list[Ranked]) -> list[Ranked]:
     best = sorted(confirmed, key=lambda r: -r.delta_elpd)
     if not best:
         return best
-    top = best[0].delta_elpd
-    tied = [r for r in best if top - r.delta_elpd < ELPD_TIE]
-    rest = [r for r in best if top - r.delta_elpd >= ELPD_TIE]
+    tied = [r for r in best if best[0].delta_elpd - r.delta_elpd < tie_margin(best[0], r, "elpd")]
+    rest = [r for r in best if r not in tied]
     return sorted(tied, key=lambda r: -(r.delta_lfo or 0.0)) + rest
 
 
 def evidence_ties(winner: Ranked, confirmed: list[Ranked]) -> list[Ranked]:
     """Confirmed candidates the evidence cannot separate from the winner: ΔELPD and ΔLFO both
-    within ``ELPD_TIE`` (e.g. linear and quadratic drag on a throw whose speed barely varies).
-    They share the winner's rank: the winner is named (``refine`` adds one effect), but the
-    table does not claim an order the data do not give."""
+    within ``tie_margin`` (e.g. linear and quadratic drag on a throw whose speed barely
+    varies). They share the winner's rank: the winner is named (``refine`` adds one effect),
+    but the table does not claim an order the data do not give."""
     return [r for r in confirmed if r is not winner
-            and winner.delta_elpd - r.delta_elpd < ELPD_TIE
-            and abs((winner.delta_lfo or 0.0) - (r.delta_lfo or 0.0)) < ELPD_TIE]
+            and winner.delta_elpd - r.delta_elpd < tie_margin(winner, r, "elpd")
+            and abs((winner.delta_lfo or 0.0) - (r.delta_lfo or 0.0)) < tie_margin(winner, r, "lfo")]
 
 
 def _snippet(before: str, after: str) -> str:
@@ -624,7 +646,8 @@ def diagnose(model, idata, *, confirm_top: int = 2, alpha: float = 0.05, outdir=
         if rivals:
             verdict += ("; these data barely tell it from " +
                         ", ".join(f"{r.effect} on {r.target}" for r in rivals) +
-                        f" (ΔELPD and ΔLFO within {ELPD_TIE:g}): a recording over a wider "
+                        " (ΔELPD and ΔLFO apart by less than twice their standard errors, or "
+                        f"{ELPD_TIE:g}): a recording over a wider "
                         "range of speeds or longer would separate them")
     elif top is not None and top.kind == "sensor" and top.p_value < alpha / n_tests:
         verdict = (f"the misfit looks like a sensor fault: {top.effect} on {top.target} "

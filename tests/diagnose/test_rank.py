@@ -142,7 +142,7 @@ def test_refits_stop_at_k_once_one_explains_the_misfit(quadratic, monkeypatch):
 
     monkeypatch.setattr(rank, "_refit", refit)
     monkeypatch.setattr(rank, "quick_fit", lambda model, seed=0: quadratic.idata)
-    monkeypatch.setattr(rank, "lfo_score", lambda *a: 0.0)
+    monkeypatch.setattr(rank, "lfo_points", lambda *a: np.zeros(3))
     cands = {c.key: c for c in rank.physics_candidates(quadratic.model.scene)}
     for first_good, expected in ((0, 2), (3, 4)):
         rows = copy.deepcopy(quadratic.diagnosis.ranking)
@@ -181,8 +181,8 @@ def test_twins_follow_their_representative_and_share_its_rank():
 
 
 def test_candidates_whose_evidence_ties_the_winner_share_its_rank():
-    """ΔELPD and ΔLFO both within 4 of the winner's: a tie, sharing rank 1; a candidate 14
-    behind in ΔLFO is ranked after, even with a higher ΔELPD."""
+    """Without pointwise values, ΔELPD and ΔLFO both within 4 of the winner's: a tie, sharing
+    rank 1; a candidate 14 behind in ΔLFO is ranked after, even with a higher ΔELPD."""
     from physdsl.diagnose.rank import Ranked, evidence_ties, order_by_evidence, tie_twins
 
     def row(effect, elpd, lfo):
@@ -202,6 +202,31 @@ def test_candidates_whose_evidence_ties_the_winner_share_its_rank():
     out = tie_twins(confirmed)
     assert [(r.effect, r.rank) for r in out] == [("linear_drag", 1), ("wind", 1),
                                                  ("quadratic_drag", 1), ("magnus", 2)]
+
+
+def test_a_gap_within_twice_its_standard_error_is_a_tie():
+    """ΔLFO 10 apart: a tie where the pointwise differences scatter (se of their sum ~8), an
+    order where every point favours the winner alike (se ~0); ΔELPD alike in both."""
+    from physdsl.diagnose.rank import Ranked, evidence_ties, order_by_evidence
+
+    rng = np.random.default_rng(1)
+
+    def row(effect, elpd_points, lfo_points):
+        r = Ranked(0, "effect", effect, "ball", 1.0, 0.1, 1, confirmed=True)
+        r.elpd_points, r.lfo_points = elpd_points, lfo_points
+        r.delta_elpd, r.delta_lfo = float(elpd_points.sum()), float(lfo_points.sum())
+        return r
+
+    elpd = rng.normal(1.0, 0.1, 100)
+    lfo = np.full(25, 4.0)
+    for spread, tie in ((1.6, True), (0.0, False)):
+        scatter = rng.normal(0.0, 1.0, 25)
+        scatter = spread * (scatter - scatter.mean()) / scatter.std()
+        winner = row("linear_drag", elpd, lfo + 0.4)  # 10 ahead in ΔLFO
+        other = row("quadratic_drag", elpd + 0.001, lfo + scatter)
+        confirmed = order_by_evidence([other, winner])
+        assert confirmed[0] is winner
+        assert (evidence_ties(winner, confirmed) == [other]) is tie
 
 
 def test_a_posterior_wider_than_its_prior_is_flagged(quadratic):
