@@ -22,20 +22,22 @@ def _counting(fn, counter: list):
 
 def test_both_searches_cross_a_non_concave_region_to_one_mode(projectile_model):
     from physdsl.infer.backends.map import find_mode, lbfgs, levenberg_marquardt
-    from physdsl.infer.base import gauss_newton_fn, value_and_grad_fn
+    from physdsl.infer.base import gauss_newton_fn, value_and_grad_fn, value_fn
     from physdsl.infer.problem import model_problem
 
     problem = model_problem(projectile_model)
     vg = value_and_grad_fn(problem)
     reference = find_mode(problem, EASY_START, steps=100)
     lm_calls, lbfgs_calls = [], []
-    by_lm = levenberg_marquardt(_counting(gauss_newton_fn(problem), lm_calls), HARD_START, 100)
+    by_lm = levenberg_marquardt(_counting(gauss_newton_fn(problem), lm_calls), HARD_START, 100,
+                                _counting(value_fn(problem), lm_calls))
     by_lbfgs = lbfgs(_counting(vg, lbfgs_calls), HARD_START, 100)
     for mode in (by_lm, by_lbfgs):
         assert float(vg(jnp.asarray(mode))[0]) > float(vg(jnp.asarray(reference))[0]) - 1e-6
         assert np.max(np.abs(np.asarray(vg(jnp.asarray(mode))[1]))) < 1e-3
         np.testing.assert_allclose(mode, reference, atol=1e-5)
-    # the Gauss-Newton curvature knows every scale at once: far fewer rollouts
+    # the Gauss-Newton curvature knows every scale at once: far fewer rollouts (counting
+    # Levenberg-Marquardt's value-only trials too)
     assert len(lm_calls) < len(lbfgs_calls) / 2, (len(lm_calls), len(lbfgs_calls))
 
 

@@ -14,7 +14,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from ...errors import InferenceError
-from ..base import Backend, gauss_newton_fn, register_backend, value_and_grad_fn  # noqa: F401 - re-exported
+from ..base import (Backend, gauss_newton_fn, register_backend,  # noqa: F401 - re-exported
+                    value_and_grad_fn, value_fn)
 
 
 def find_mode(problem, x0, steps: int = 300) -> np.ndarray:
@@ -22,14 +23,16 @@ def find_mode(problem, x0, steps: int = 300) -> np.ndarray:
     where the likelihood is least squares (``Problem.gauss_newton``), else by L-BFGS."""
     gn = gauss_newton_fn(problem)
     if gn is not None:
-        return levenberg_marquardt(gn, x0, steps)
+        return levenberg_marquardt(gn, x0, steps, value_fn(problem))
     return lbfgs(value_and_grad_fn(problem), x0, steps)
 
 
-def levenberg_marquardt(gn, x0, steps: int = 300) -> np.ndarray:
+def levenberg_marquardt(gn, x0, steps: int = 300, value=None) -> np.ndarray:
     """Maximise a log density whose curvature the Gauss-Newton matrix H describes: steps
     (H + lam diag(H)) d = gradient, lam shrunk after a step that raises the log density and
-    grown (same H, no new rollout) after one that does not.
+    grown (same H) after one that does not. ``gn``: x -> (log p, gradient, H); ``value``:
+    x -> log p, cheaper (no tangents) for trial points, which are often rejected where the
+    log density jumps (a contact that switches between neighbouring parameter values).
 
     Trajectory fits are badly scaled (a start position seen to a millimetre beside a mass
     seen to tens of percent) and their log density bends at every contact; L-BFGS there
@@ -43,20 +46,24 @@ def levenberg_marquardt(gn, x0, steps: int = 300) -> np.ndarray:
     lam = 1e-3
     for _ in range(steps):
         scale = np.maximum(np.diag(H), 1e-12 * max(float(np.max(np.abs(np.diag(H)))), 1e-300))
-        for _ in range(40):
+        for retry in range(40):
             try:
                 d = np.linalg.solve(H + lam * np.diag(scale), g)
             except np.linalg.LinAlgError:
                 d = None
             if d is not None and np.all(np.isfinite(d)):
-                if g @ d <= 1e-10 * max(1.0, abs(v)):  # the step's first-order gain
-                    return x  # is below the convergence test's: at a mode already
-                vn, gn_, Hn = _evaluate(gn, x + d)
-                if np.isfinite(vn) and vn > v:
-                    break
+                if (g @ d <= 1e-10 * max(1.0, abs(v))  # a first-order gain below the
+                        or np.max(np.abs(d)) <= 1e-12 * (1.0 + np.max(np.abs(x)))):  # test's,
+                    return x  # or a step lost in rounding: at a mode (or a jump) already
+                # the first trial in full (most are taken); after a rejection, values first
+                vn = float(value(jnp.asarray(x + d))) if value is not None and retry else None
+                if vn is None or (np.isfinite(vn) and vn > v):
+                    vn, gn_, Hn = _evaluate(gn, x + d)
+                    if np.isfinite(vn) and vn > v:
+                        break
             lam *= 4.0
         else:
-            break  # no step raises it: at a mode (to rounding) or against an edge
+            break  # no step raises it: against an edge
         lam = max(lam / 3.0, 1e-12)
         # converged as L-BFGS (below): a gain under 1e-10 of the log density, or no slope
         done = vn - v <= 1e-10 * max(1.0, abs(v)) or np.max(np.abs(gn_)) < 1e-7
