@@ -468,7 +468,8 @@ def tie_twins(ranked: list[Ranked]) -> list[Ranked]:
 EXTRA_REFITS = 2  # further candidates refitted while no refit has explained the misfit
 
 
-def confirm(model, idata, ranked: list[Ranked], cands: dict, k: int, base_rms: float) -> None:
+def confirm(model, idata, ranked: list[Ranked], cands: dict, k: int, base_rms: float,
+            echo=None) -> None:
     """Refit the best ``k`` physical candidates with the effect added; fill the comparison fields.
 
     Far from the truth (a misfit of tens of sigma) the score test's local ranking can put the
@@ -479,13 +480,16 @@ def confirm(model, idata, ranked: list[Ranked], cands: dict, k: int, base_rms: f
     would give the same refit, so it is skipped and the next distinct candidate is refitted
     instead. A refit that fails
     (a model error, or a fit the inference cannot complete) leaves that candidate unconfirmed
-    with a note; it never ends the whole diagnosis.
+    with a note; it never ends the whole diagnosis. ``echo`` (a line -> None) hears of each
+    refit as it starts and ends: on contact scenes each takes minutes.
     """
     from ..compile import Model
 
     base_loo = combined_loo(idata)
     times = np.concatenate([o.obs.times for o in model.observed])
     cutoff = float(times.min() + LFO_FRACTION * (times.max() - times.min()))
+    echo = echo or (lambda line: None)
+    echo(f"  fitting the first {LFO_FRACTION:.0%} of the recording (leave-future-out baseline)")
     try:
         base_lfo = lfo_points(model, quick_fit(Model(model.scene, until=cutoff)), cutoff)
     except REFIT_FAILURES:
@@ -500,13 +504,29 @@ def confirm(model, idata, ranked: list[Ranked], cands: dict, k: int, base_rms: f
         if done >= k + EXTRA_REFITS or (done >= k and explained):
             break
         done += 1
+        echo(f"  refit {done}: with {r.effect} on {r.target}")
+        t0 = time.perf_counter()
         try:
             cand = cands[r.effect + "@" + r.target]
             _refit(model, r, cand, base_loo, base_lfo, cutoff, base_rms,
                    refit_start(model, idata, cand, r.estimate))
+            echo(f"    {_evidence_text(r)} ({time.perf_counter() - t0:.0f} s)")
         except REFIT_FAILURES as err:
             r.note = f"refit failed: {getattr(err, 'message', None) or err}"
             r.confirmed = False
+            echo(f"    {r.note}")
+
+
+def _evidence_text(r: Ranked) -> str:
+    """ΔELPD ± se, ΔLFO and RMS before → after of a refitted candidate, as far as known."""
+    parts = []
+    if r.delta_elpd is not None:
+        parts.append(f"ΔELPD {r.delta_elpd:+.1f} ± {r.delta_elpd_se or 0.0:.1f}")
+    if r.delta_lfo is not None:
+        parts.append(f"ΔLFO {r.delta_lfo:+.1f}")
+    if r.rms_after is not None and r.rms_before is not None:
+        parts.append(f"RMS {r.rms_before:.2f}σ → {r.rms_after:.2f}σ")
+    return ", ".join(parts)
 
 
 def _refit(model, r: Ranked, cand: Candidate, base_loo, base_lfo, cutoff: float,
@@ -592,8 +612,9 @@ def _snippet(before: str, after: str) -> str:
 
 
 def diagnose(model, idata, *, confirm_top: int = 2, alpha: float = 0.05, outdir=None,
-             check_report=None) -> Diagnosis:
-    """Rank candidate missing effects by evidence; confirm the best by refitting."""
+             check_report=None, echo=None) -> Diagnosis:
+    """Rank candidate missing effects by evidence; confirm the best by refitting (``echo``: a
+    line -> None that hears of the refits' progress)."""
     from .workflow import check_model, wider_than_prior
 
     t0 = time.perf_counter()
@@ -621,7 +642,7 @@ def diagnose(model, idata, *, confirm_top: int = 2, alpha: float = 0.05, outdir=
     significant = [r for r in ranked if r.p_value < alpha / n_tests]
     winner = None
     if significant and confirm_top > 0:
-        confirm(model, idata, ranked, cands, confirm_top, float(report.rms_sigma))
+        confirm(model, idata, ranked, cands, confirm_top, float(report.rms_sigma), echo)
         confirmed = order_by_evidence([r for r in ranked if r.confirmed])
         if confirmed:
             winner = confirmed[0]

@@ -62,7 +62,7 @@ def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", cha
             rounds.append(Round(k, current, float(report.rms_sigma), elpd, added, verdict))
             break
         diag = diagnose(model, idata, confirm_top=max(confirm_top, 1), outdir=rdir / "diagnosis",
-                        check_report=report)
+                        check_report=report, echo=echo)
         echo(f"round {k}: {diag.verdict}")
         echo(diag.table())
         rounds.append(Round(k, current, float(report.rms_sigma), elpd, added, diag.verdict))

@@ -138,7 +138,7 @@ def test_refits_stop_at_k_once_one_explains_the_misfit(quadratic, monkeypatch):
     from physdsl.diagnose import rank
 
     def refit(model, r, *args):
-        r.rms_after, r.confirmed = (1.0 if r is explained else 5.0), True
+        r.rms_before, r.rms_after, r.confirmed = 2.0, (1.0 if r is explained else 5.0), True
 
     monkeypatch.setattr(rank, "_refit", refit)
     monkeypatch.setattr(rank, "quick_fit", lambda model, seed=0: quadratic.idata)
@@ -148,8 +148,14 @@ def test_refits_stop_at_k_once_one_explains_the_misfit(quadratic, monkeypatch):
         rows = copy.deepcopy(quadratic.diagnosis.ranking)
         physical = [r for r in rows if r.kind == "effect"]
         explained = physical[first_good]
-        rank.confirm(quadratic.model, quadratic.idata, rows, cands, 2, 2.0)
+        lines = []
+        rank.confirm(quadratic.model, quadratic.idata, rows, cands, 2, 2.0, lines.append)
         assert sum(r.confirmed is not None for r in rows) == expected
+        # the user hears of each refit as it starts and ends
+        refits = [ln for ln in lines if ln.strip().startswith("refit ")]
+        assert refits == [f"  refit {i + 1}: with {r.effect} on {r.target}"
+                          for i, r in enumerate(physical[:expected])]
+        assert sum("RMS 2.00σ → " in ln for ln in lines) == expected
 
 
 def test_candidates_of_a_contact_scene(tmp_path):
