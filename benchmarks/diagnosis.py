@@ -21,7 +21,8 @@ candidate, then refits of the best ``--confirm`` physical candidates) and report
   the load average is printed with it).
 
 Each case runs in its own process with a time limit (``--timeout``, seconds), so a case that
-cannot finish is reported as such and the others still run.
+cannot finish is reported as such and the others still run; its refits are reported on stderr
+as they go.
 
 Run: .venv/bin/python benchmarks/diagnosis.py [--case thrown_ball [--case pendulum]] [--confirm 2]
 """
@@ -37,6 +38,33 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 CASES = ROOT / "examples" / "hidden-effect"
+
+
+def _run_child(name: str, cmd: list[str], timeout: float) -> dict:
+    """Run one case in its own process, passing its progress lines (``[name] ...``) on to
+    stderr as they come; its result, or why there is none."""
+    import threading
+
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    timer = threading.Timer(timeout, proc.kill)
+    timer.start()
+    lines = []
+    for ln in proc.stdout:
+        if ln.startswith(f"[{name}] "):
+            print(ln, end="", file=sys.stderr, flush=True)
+        lines.append(ln.rstrip("\n"))
+    proc.wait()
+    timed_out = not timer.is_alive()
+    timer.cancel()
+    result = next((ln for ln in lines if ln.startswith("RESULT ")), None)
+    if result is not None:
+        return json.loads(result[len("RESULT "):])
+    if timed_out:
+        return {"case": name, "error": f"did not finish within {timeout:.0f} s"}
+    lines = [ln for ln in lines if ln.strip() and not ln.startswith(("For simplicity", "-----"))]
+    errs = [ln for ln in lines if "Error" in ln.split(":")[0]]
+    tail = (errs or lines or ["no output"])[-1]
+    return {"case": name, "error": f"failed (exit {proc.returncode}): {tail}"}
 
 
 def run_case(name: str, confirm: int, seed: int) -> dict:
@@ -57,7 +85,8 @@ def run_case(name: str, confirm: int, seed: int) -> dict:
     model = Model(load(folder / "naive.phys"))
     idata = quick_fit(model, seed=seed)
     t1 = time.perf_counter()
-    diag = diagnose(model, idata, confirm_top=confirm)
+    diag = diagnose(model, idata, confirm_top=confirm,
+                    echo=lambda line: print(f"[{name}] {line}", file=sys.stderr, flush=True))
     t2 = time.perf_counter()
     keys = [f"{r.effect}@{r.target}" for r in diag.ranking]
     physical = sorted((r for r in diag.ranking if r.kind == "effect"),
@@ -129,19 +158,7 @@ def main() -> None:
         t0 = time.perf_counter()
         cmd = [sys.executable, __file__, "--one", name, "--confirm", str(args.confirm),
                "--seed", str(args.seed)]
-        try:
-            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=args.timeout)
-            line = next((ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")), None)
-            if line is None:
-                lines = [ln for ln in proc.stderr.strip().splitlines()
-                         if ln.strip() and not ln.startswith(("For simplicity", "-----"))]
-                errs = [ln for ln in lines if "Error" in ln.split(":")[0]]
-                tail = (errs or lines or ["no output"])[-1]
-                res = {"case": name, "error": f"failed (exit {proc.returncode}): {tail}"}
-            else:
-                res = json.loads(line[len("RESULT "):])
-        except subprocess.TimeoutExpired:
-            res = {"case": name, "error": f"did not finish within {args.timeout:.0f} s"}
+        res = _run_child(name, cmd, args.timeout)
         res.setdefault("seconds", time.perf_counter() - t0)
         res["load"] = " ".join(f"{x:.1f}" for x in os.getloadavg())
         results.append(res)
