@@ -58,9 +58,10 @@ class Problem(NamedTuple):
     model: Any  # the compiled Model (for backends that need the program itself)
     data: Any  # the measurements: the second argument of logdensity / to_constrained
     cache: dict  # compiled functions (taking data as an argument), shared by the structure
-    # (flat, data) -> (log p, gradient, Gauss-Newton matrix: an approximation of the negative
-    # Hessian, positive semi-definite), where the likelihood is least squares; else None
+    # where the likelihood is least squares (else None): (flat, data) -> (log p, gradient,
+    # J^T J: the likelihood's Gauss-Newton curvature), and flat -> the Hessian of -log prior
     gauss_newton: Callable[[jax.Array, Any], tuple] | None = None
+    prior_hessian: Callable[[jax.Array], jax.Array] | None = None
 
 
 class Backend:
@@ -105,9 +106,9 @@ def cached(problem: Problem, key, build: Callable):
 def value_and_grad_fn(problem: Problem):
     """x -> (log density, gradient) at ``problem``'s data; compiled once per scene structure
     (as part of ``gauss_newton_fn`` where that exists: one compile serves both)."""
-    gn = gauss_newton_fn(problem)
-    if gn is not None:
-        return lambda x: gn(x)[:2]
+    if problem.gauss_newton is not None:
+        parts = _gauss_newton_parts(problem)
+        return lambda x: parts(x)[:2]
     vg = cached(problem, "vg", lambda: jax.jit(jax.value_and_grad(problem.logdensity)))
     data = problem.data
     return lambda x: vg(x, data)
@@ -122,26 +123,40 @@ def value_fn(problem: Problem):
 
 
 def gauss_newton_fn(problem: Problem):
-    """x -> (log density, gradient, Gauss-Newton matrix) at ``problem``'s data (see
-    ``Problem.gauss_newton``), compiled once per scene structure; None where unavailable."""
+    """x -> (log density, gradient, Gauss-Newton matrix J^T J + Hessian of -log prior: an
+    approximation of the negative Hessian) at ``problem``'s data; None where the likelihood is
+    not least squares. The likelihood's part is ``value_and_grad_fn``'s own compiled function
+    (one compile serves both); the prior's, a small program with no rollout, is exact."""
     if problem.gauss_newton is None:
         return None
+    parts = _gauss_newton_parts(problem)
+    prior = cached(problem, "prior-hessian", lambda: jax.jit(problem.prior_hessian))
+
+    def gn(x):
+        v, g, JJ = parts(x)
+        return v, g, JJ + prior(x)
+
+    return gn
+
+
+def _gauss_newton_parts(problem: Problem):
     gn = cached(problem, "gauss-newton", lambda: jax.jit(problem.gauss_newton))
     data = problem.data
     return lambda x: gn(x, data)
 
 
-def gauss_newton(logdensity, residuals, neg_log_prior):
-    """(x, data) -> (log p, gradient, J^T J + Hessian of -log prior) with J = d residuals / dx.
+def gauss_newton(with_residuals):
+    """(x, data) -> (log p, gradient, J^T J) with J = d residuals / dx; ``with_residuals``:
+    (x, data) -> (log p, standardised residuals), from one rollout.
 
-    For a likelihood -1/2 |r|^2 (plus noise-scale terms), J^T J is the likelihood's curvature
-    without second derivatives of the physics (Gauss-Newton); the prior's (a small program with
-    no rollout) is exact. All from one forward-mode pass: the tangents that give the gradient
-    pass through the residuals, so their Jacobian costs no extra rollout.
+    For a likelihood -1/2 |r|^2 (plus noise-scale terms), J^T J is its curvature without
+    second derivatives of the physics (Gauss-Newton). All from one forward-mode pass: the
+    tangents that give the gradient pass through the residuals, so their Jacobian costs no
+    extra rollout.
     """
     def fn(x, data):
-        (v, r), (g, J) = _forward(lambda x, data: (logdensity(x, data), residuals(x, data)), x, data)
-        H = J.reshape(x.size, -1) @ J.reshape(x.size, -1).T + jax.hessian(neg_log_prior)(x)
+        (v, r), (g, J) = _forward(with_residuals, x, data)
+        H = J.reshape(x.size, -1) @ J.reshape(x.size, -1).T
         ok = jnp.isfinite(v) & jnp.all(jnp.isfinite(g)) & jnp.all(jnp.isfinite(H))
         return (jnp.where(ok, v, -jnp.inf), jnp.where(ok, g, 0.0), jnp.where(ok, H, 0.0))
 

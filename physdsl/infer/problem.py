@@ -39,9 +39,9 @@ def _build_problem(model) -> Problem:
                              "trajectory inference yet",
                              hint="give them a value, or fit shape from images with "
                                   "physdsl.render.inverse (Metropolis-within-Gibbs)")
-    logdensity, to_constrained, dim, gn = model.cached("problem", lambda: _functions(model))
+    logdensity, to_constrained, dim, gn, ph = model.cached("problem", lambda: _functions(model))
     data = jax.device_put(model.data)  # (jnp.asarray would compile a conversion per array)
-    return Problem(logdensity, to_constrained, dim, model, data, model.compiled.cache, gn)
+    return Problem(logdensity, to_constrained, dim, model, data, model.compiled.cache, gn, ph)
 
 
 def _functions(model):
@@ -62,16 +62,20 @@ def _functions(model):
     def to_constrained(x, data):
         return constrain_fn(model.numpyro_model, (data,), {}, unravel(x), return_deterministic=True)
 
-    def residuals(x, data):  # standardised residuals; the prior program alone constrains x
-        values = constrain_fn(model.prior_values, (), {}, unravel(x))
-        return model.standardized_residuals(values, model.predict(values, data=data), data)
-
     def neg_log_prior(x):
         return potential_energy(model.prior_values, (), {}, unravel(x))
 
-    gn = (gauss_newton(logdensity, residuals, neg_log_prior)
-          if model.least_squares and dim <= FORWARD_MODE_MAX else None)
-    return safe_logdensity(logdensity), to_constrained, dim, gn
+    def with_residuals(x, data):  # the log density and the standardised residuals, one rollout
+        values = constrain_fn(model.prior_values, (), {}, unravel(x))
+        preds = model.predict(values, data=data)
+        ll = model.pointwise_log_likelihood(values, preds, data)
+        return (sum((jnp.sum(v) for v in ll.values()), -neg_log_prior(x)),
+                model.standardized_residuals(values, preds, data))
+
+    if not (model.least_squares and dim <= FORWARD_MODE_MAX):
+        return safe_logdensity(logdensity), to_constrained, dim, None, None
+    return (safe_logdensity(logdensity), to_constrained, dim, gauss_newton(with_residuals),
+            jax.hessian(neg_log_prior))
 
 
 def unraveler(layout):
