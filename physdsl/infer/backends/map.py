@@ -58,7 +58,7 @@ def levenberg_marquardt(gn, x0, steps: int = 300, value=None) -> np.ndarray:
                 # the first trial in full (most are taken); after a rejection, values first
                 vn = float(value(jnp.asarray(x + d))) if value is not None and retry else None
                 if vn is None or (np.isfinite(vn) and vn > v):
-                    vn, gn_, Hn = _evaluate(gn, x + d)
+                    vn, g_new, H_new = _evaluate(gn, x + d)
                     if np.isfinite(vn) and vn > v:
                         break
             lam *= 4.0
@@ -66,8 +66,8 @@ def levenberg_marquardt(gn, x0, steps: int = 300, value=None) -> np.ndarray:
             break  # no step raises it: against an edge
         lam = max(lam / 3.0, 1e-12)
         # converged as L-BFGS (below): a gain under 1e-10 of the log density, or no slope
-        done = vn - v <= 1e-10 * max(1.0, abs(v)) or np.max(np.abs(gn_)) < 1e-7
-        x, v, g, H = x + d, vn, gn_, Hn
+        done = vn - v <= 1e-10 * max(1.0, abs(v)) or np.max(np.abs(g_new)) < 1e-7
+        x, v, g, H = x + d, vn, g_new, H_new
         if done:
             break
     return x
