@@ -293,3 +293,34 @@ def test_infer_starts_at_given_positions(quadratic):
     with pytest.raises(UsageError, match="start positions"):
         model.infer(backend="rmh", positions=far[:1], chains=2, warmup=1, samples=1,
                     progress=False)
+
+
+def test_refine_starts_the_next_round_where_the_refit_ended(quadratic, quadratic_refit,
+                                                            monkeypatch, tmp_path):
+    """Round 1's fit starts at round 0's fit plus the winner's fitted strength (from the prior,
+    billiards' second round settled at 7.85σ where the diagnosis's refit had reached 0.97σ)."""
+    import dataclasses
+
+    from physdsl.diagnose import rank
+    from physdsl.diagnose.refine import refine
+    from physdsl.diagnose.workflow import point_estimate
+
+    new_model, new_idata, _, key = quadratic_refit
+    starts = []
+
+    def fit(model, backend, **settings):
+        starts.append(dict(settings["start"]))
+        return quadratic.idata if not starts[1:] else new_idata
+
+    winner = dataclasses.replace(_row(quadratic.diagnosis, "quadratic_drag@ball"), confirmed=True,
+                                 fitted={"name": key, "median": 4e-4}, snippet="effect ...")
+    diag = dataclasses.replace(quadratic.diagnosis, winner=winner, verdict="missing effect")
+    monkeypatch.setattr(rank, "fit_with_fallback", fit)
+    monkeypatch.setattr(rank, "diagnose", lambda *a, **k: diag)
+    scene = next(quadratic.folder.glob("naive.phys"))
+    rounds = refine(scene, tmp_path / "out", max_rounds=2, echo=lambda *_: None)
+    assert [r.added for r in rounds] == [None, {"effect": "quadratic_drag", "target": "ball"}]
+    assert starts[0] == {}
+    expected = {k: np.asarray(v).tolist() for k, v in point_estimate(quadratic.model,
+                                                                     quadratic.idata).items()}
+    assert starts[1] == {**expected, key: 4e-4}
