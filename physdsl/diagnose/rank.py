@@ -379,9 +379,14 @@ def quick_fit(model, seed: int = 0, start: dict | None = None):
     """A fast posterior for comparisons: MAP from two prior draws with a Laplace approximation
     (random-walk Metropolis where that fails, see ``fit_with_fallback``); with ``start``
     (constrained values by name) the first optimisation starts there instead."""
-    start = tuple((k, np.asarray(v, dtype=float).tolist()) for k, v in (start or {}).items())
     return fit_with_fallback(model, "map", chains=2, warmup=300, samples=FIT_DRAWS, seed=seed,
-                             progress=False, start=start)
+                             progress=False, start=start_setting(start or {}))
+
+
+def start_setting(values: dict) -> tuple:
+    """Constrained values by name as the ``start`` setting of a fit (hashable plain numbers:
+    it enters the run's fingerprint)."""
+    return tuple((k, np.asarray(v, dtype=float).tolist()) for k, v in values.items())
 
 
 def refit_start(model, idata, cand: Candidate, estimate: float | None) -> dict:

@@ -8,8 +8,6 @@ import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from .. import io
 from ..compile import Model
 from ..syntax import load
@@ -32,7 +30,8 @@ def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", cha
            confirm_top: int = 2, echo=print) -> list[Round]:
     """Fit, check, diagnose and extend the scene until it explains the data; returns the rounds."""
     from .candidates import physics_candidates
-    from .rank import combined_loo, diagnose, fit_with_fallback, loo_reliability, with_effect
+    from .rank import (combined_loo, diagnose, fit_with_fallback, loo_reliability,
+                       start_setting, with_effect)
     from .workflow import point_estimate
 
     out = io.prepare_outdir(outdir, force=force)
@@ -49,8 +48,7 @@ def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", cha
         echo(f"round {k}: fitting {current} ({backend}, {chains} chains)")
         idata = fit_with_fallback(model, backend, chains=chains, warmup=warmup, samples=samples,
                                   seed=seed, outdir=rdir / "fit", force=True, progress=False,
-                                  start=tuple((n, np.asarray(v, dtype=float).tolist())
-                                              for n, v in start.items()))
+                                  start=start_setting(start))
         if "fit_note" in idata.attrs:
             echo(f"round {k}: {idata.attrs['fit_note']}")
         report = model.check(idata, outdir=rdir / "check")
