@@ -331,6 +331,8 @@ class _Reader:
                 rest = m.qpos_spring[qa] - m.qpos0[qa]
                 self.effects.append(ast.EffectItem("joint_spring", (name,), block(
                     field("stiffness", quantity(k, u["stiff"])), field("rest", quantity(rest, u["q"])))))
+        if np.any(m.dof_dampingpoly[va]) or np.any(m.jnt_stiffnesspoly[j]):
+            self.notes.add(f"joint '{name}': polynomial damping/stiffness terms are not expressible")
         if m.dof_armature[va] > 0:
             self.notes.add(f"joint '{name}': armature {m.dof_armature[va]:.6g} (rotor inertia) is "
                            "not expressible")
