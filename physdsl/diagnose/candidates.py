@@ -4,6 +4,11 @@ on every target it could act on, plus sensor faults per observation (offset, gai
 Pair effects also get material-level candidates: where several contact pairs share one fixed
 body (a table, a floor), the effect on all of them with ONE shared coefficient (a cloth has one
 friction coefficient, not one per ball), targeted ``(table, *)``.
+
+Joint effects also get group candidates: the same law on every hinge (or every slider) of one
+articulated body (joints chained through moving bodies), once with ONE shared strength
+(target ``shoulder+elbow``) and once with a strength per joint (target ``shoulder&elbow``): a
+damped chain has damping in every hinge, one hypothesis.
 """
 from __future__ import annotations
 
@@ -16,6 +21,7 @@ NOT_CANDIDATES = {"gravity", "control_force", "spring", "constant_force"}
 SENSOR_KINDS = ("offset", "gain", "delay")
 PAIR_EFFECTS_SKIP = {"damper"}  # acts on pairs too, but only where a spring gives anchors
 ANY = "*"  # second target of a material-level candidate: every pair of the fixed body
+SHARED, EACH = "+", "&"  # joints of a group candidate: one shared strength / one per joint
 
 
 @dataclass(frozen=True)
@@ -37,9 +43,31 @@ class Candidate:
         return len(self.target) == 2 and self.target[1] == ANY
 
     @property
+    def joints(self) -> tuple[str, ...]:
+        """The joints of a group candidate (``shoulder+elbow`` / ``shoulder&elbow``), else ()."""
+        if len(self.target) != 1:
+            return ()
+        for sep in (SHARED, EACH):
+            if sep in self.target[0]:
+                return tuple(self.target[0].split(sep))
+        return ()
+
+    @property
+    def shared(self) -> bool:
+        """One strength for several targets: a material-level or a shared-strength group."""
+        return self.material or (bool(self.joints) and SHARED in self.target[0])
+
+    @property
     def shared_param(self) -> str:
-        """Name of the shared coefficient's ``param`` of a material-level candidate."""
-        return f"{self.target[0]}_{self.name}"
+        """Name of the shared coefficient's ``param`` (material-level or shared group)."""
+        head = "_".join(self.joints) if self.joints else self.target[0]
+        return f"{head}_{self.name}"
+
+    def parts(self) -> list["Candidate"]:
+        """The per-joint candidates a group candidate is made of (itself if not a group)."""
+        if not self.joints:
+            return [self]
+        return [Candidate(self.kind, self.name, (j,), self.params) for j in self.joints]
 
     def phys_target(self) -> str:
         return f"({', '.join(self.target)})" if len(self.target) == 2 else self.target[0]
@@ -64,7 +92,32 @@ def physics_candidates(scene: Scene) -> list[Candidate]:
             for fixed in fixed_bodies(scene):
                 if len(material_pairs(scene, decl.name, fixed)) >= 2:
                     out.append(Candidate("effect", decl.name, (fixed, ANY)))
+        if "joint" in decl.acts_on.split("|"):
+            for group in joint_groups(scene):
+                if not any((decl.name, (j,)) in present for j in group):
+                    out += [Candidate("effect", decl.name, (sep.join(group),)) for sep in (SHARED, EACH)]
     return out
+
+
+def joint_groups(scene: Scene) -> list[tuple[str, ...]]:
+    """Hinges (and, apart, sliders) of each articulated body, two or more: joints joined
+    through moving bodies (a fixed body or the world does not join two chains)."""
+    fixed = set(fixed_bodies(scene)) | {"world"}
+    comp = {b.name: b.name for b in scene.bodies}
+
+    def root(b):
+        while comp.setdefault(b, b) != b:
+            b = comp[b]
+        return b
+
+    for j in scene.joints:
+        if j.parent not in fixed and j.child not in fixed:
+            comp[root(j.child)] = root(j.parent)
+    groups: dict = {}
+    for j in scene.joints:
+        if j.kind in ("hinge", "slider"):
+            groups.setdefault((root(j.child), j.kind), []).append(j.name)
+    return [tuple(g) for g in groups.values() if len(g) >= 2]
 
 
 def fixed_bodies(scene: Scene) -> list[str]:

@@ -21,8 +21,11 @@ import numpy as np
 
 from .. import io
 from ..errors import PhysError, PhysNameError
-from ..syntax import edit, format_source, loads
+from ..syntax import format_source
 from .candidates import Candidate, material_pairs, physics_candidates, sensor_candidates
+from .edits import load_text as _load_text
+from .evidence import laplace_log_evidence, model_probabilities
+from .edits import prior_text, strength_name, unknown_key, unknown_keys, with_effect  # noqa: F401
 from .score import ScoreResult, jacobian, project_out, score_test, sensor_columns
 from .workflow import noise_unknowns, point_estimate, posterior_draws
 
@@ -54,6 +57,9 @@ class Ranked:
     snippet: str | None = None
     same_as: str | None = None  # "effect@target" of a better ranked candidate that acts alike
     tied_with: str | None = None  # "effect@target" of the winner whose evidence this one ties
+    log_evidence: float | None = None  # Laplace log marginal likelihood of the refit (None: n/a)
+    model_prob: float | None = None  # posterior probability among the confirmed (equal odds)
+    consistent_after: bool | None = None  # the refit's check finds no systematic residual
     note: str = ""
     # pointwise differences to the fit without the effect (LOO per measurement time; log
     # predictive density per time after the cut-off): the standard errors of ties
@@ -79,15 +85,16 @@ class Diagnosis:
 
     def table(self) -> str:
         head = (f"{'#':>2} {'candidate':<34} {'score':>9} {'p-value':>9} "
-                f"{'ΔELPD ± se':>16} {'ΔLFO':>8} {'RMS before → after':>20}")
+                f"{'ΔELPD ± se':>16} {'ΔLFO':>8} {'P(model)':>8} {'RMS before → after':>20}")
         lines = [head, "-" * len(head)]
         for r in self.ranking:
             de = (f"{r.delta_elpd:+.1f} ± {r.delta_elpd_se:.1f}" if r.delta_elpd is not None else "")
             rms = (f"{r.rms_before:.2f}σ → {r.rms_after:.2f}σ" if r.rms_after is not None else "")
             name = f"{r.effect} on {r.target}" if r.kind == "effect" else f"sensor {r.effect} on {r.target}"
             lfo = f"{r.delta_lfo:+.1f}" if r.delta_lfo is not None else ""
+            prob = ("" if not r.confirmed else "n/a" if r.model_prob is None else f"{r.model_prob:.3g}")
             lines.append(f"{r.rank:>2} {name:<34} {r.statistic:>9.1f} {p_value_text(r):>9} {de:>16} "
-                         f"{lfo:>8} {rms:>20}")
+                         f"{lfo:>8} {prob:>8} {rms:>20}")
         return "\n".join(lines)
 
 
@@ -110,61 +117,6 @@ def _clean(obj):
     return obj
 
 
-def prior_text(prior) -> str:
-    """.phys text of a library prior (SI numbers, so no units are needed)."""
-    from ..expr import constant_value
-
-    args = [_num(constant_value(a)) for a in prior.args]
-    args += [f"{k}: {_num(constant_value(v))}" for k, v in prior.kwargs]
-    return f"~ {prior.dist}({', '.join(args)})"
-
-
-def _num(v) -> str:
-    v = np.asarray(v)
-    if v.ndim == 0:
-        return f"{float(v):.6g}"
-    return "(" + ", ".join(f"{float(x):.6g}" for x in v.ravel()) + ")"
-
-
-def strength_name(scene, cand: Candidate) -> str:
-    return scene.effect_library[cand.name].strength.name
-
-
-def with_effect(scene, cand: Candidate, text: str | None = None) -> str:
-    """The scene's text (or ``text``) with candidate ``cand`` added, its strength an unknown with
-    the library prior. A material-level candidate (target ``(table, *)``) declares one
-    ``param TABLE_EFFECT ~ prior`` and adds the effect on every pair of ``table`` that lacks it,
-    each with that param as its strength."""
-    decl = scene.effect_library[cand.name]
-    filename = str(scene.path or "<string>")
-    text = scene.source if text is None else text
-    prior = prior_text(decl.strength.prior)
-    if not cand.material:
-        params = {decl.strength.name: prior, **dict(cand.params)}
-        return edit.add_effect(text, cand.name, cand.phys_target(), params, filename=filename)
-    pairs = material_pairs(scene, cand.name, cand.target[0])
-    if not pairs:
-        raise PhysNameError(f"no contact pair of '{cand.target[0]}' lacks {cand.name}")
-    text = edit.add_param(text, cand.shared_param, prior, filename=filename)
-    for a, b in pairs:
-        text = edit.add_effect(text, cand.name, f"({a}, {b})",
-                               {decl.strength.name: cand.shared_param, **dict(cand.params)},
-                               filename=filename)
-    return text
-
-
-def _load_text(scene, text):
-    base = Path(scene.path).parent if scene.path else Path.cwd()
-    return loads(text, filename=str(scene.path or "<string>"), base_dir=base)
-
-
-def unknown_key(scene, cand: Candidate) -> str:
-    """The unknown that holds the candidate's strength once it is added (``with_effect``)."""
-    if cand.material:
-        return cand.shared_param
-    return f"{cand.key}.{strength_name(scene, cand)}"
-
-
 def score_all(model, idata) -> list[tuple[Candidate, ScoreResult]]:
     """Score test of every candidate at the fit (``point_estimate``), in one augmented model.
 
@@ -179,7 +131,7 @@ def score_all(model, idata) -> list[tuple[Candidate, ScoreResult]]:
     text = scene.source
     usable = []
     for c in cands:
-        if c.material:
+        if c.material or c.joints:  # columns from their parts' (below)
             continue
         try:
             text = with_effect(scene, c, text)
@@ -206,6 +158,9 @@ def score_all(model, idata) -> list[tuple[Candidate, ScoreResult]]:
             parts = [Candidate("effect", c.name, p).key for p in material_pairs(scene, c.name, c.target[0])]
             if all(p in by_key for p in parts) and _expressible(scene, c):
                 groups.append((c, sum(by_key[p] for p in parts)))
+        elif c.joints and all(p.key in by_key for p in c.parts()) and _expressible(scene, c):
+            cols = [by_key[p.key] for p in c.parts()]  # one shared strength: the sum
+            groups.append((c, sum(cols) if c.shared else np.concatenate(cols, axis=1)))
     results = []
     for c, col in groups:
         cols = project_out(J_theta, col)
@@ -405,7 +360,8 @@ def refit_start(model, idata, cand: Candidate, estimate: float | None) -> dict:
     step = float(estimate) if estimate is not None and np.isfinite(estimate) else 0.0
     if decl.sign:  # one-sided: at least a hair inside the physical side
         step = decl.sign * max(decl.sign * step, 1e-3 * max(abs(float(off)), 1.0))
-    start[unknown_key(model.scene, cand)] = float(off) + step
+    for key in unknown_keys(model.scene, cand):
+        start[key] = float(off) + step
     return start
 
 
@@ -479,7 +435,8 @@ def confirm(model, idata, ranked: list[Ranked], cands: dict, k: int, base_rms: f
 
     Far from the truth (a misfit of tens of sigma) the score test's local ranking can put the
     true effect below the first ``k``: while no refit has brought the residual RMS down to
-    ``CONSISTENT_RMS``, up to ``EXTRA_REFITS`` further candidates are refitted.
+    the noise (its check flags no systematic residual), up to ``EXTRA_REFITS`` further
+    candidates are refitted.
 
     A candidate that acts exactly like a better ranked one (``same_as``, see ``mark_twins``)
     would give the same refit, so it is skipped and the next distinct candidate is refitted
@@ -499,13 +456,11 @@ def confirm(model, idata, ranked: list[Ranked], cands: dict, k: int, base_rms: f
         base_lfo = lfo_points(model, quick_fit(Model(model.scene, until=cutoff)), cutoff)
     except REFIT_FAILURES:
         base_lfo = None  # leave-future-out unavailable: judged on ΔELPD and RMS alone
-    from .refine import CONSISTENT_RMS
-
     done = 0
     for r in ranked:
         if r.kind != "effect" or r.same_as:
             continue
-        explained = any(t.rms_after is not None and t.rms_after <= CONSISTENT_RMS for t in ranked)
+        explained = any(t.consistent_after for t in ranked)
         if done >= k + EXTRA_REFITS or (done >= k and explained):
             break
         done += 1
@@ -556,7 +511,11 @@ def _refit(model, r: Ranked, cand: Candidate, base_loo, base_lfo, cutoff: float,
         r.delta_lfo = float(r.lfo_points.sum())
     r.rms_before, r.rms_after = base_rms, float(rep.rms_sigma)
     key = unknown_key(model.scene, cand)
+    r.log_evidence = laplace_log_evidence(new, fit)
+    r.consistent_after = rep.consistent
     r.fitted = {"name": key, "median": float(np.median(fit.posterior[key].values)),
+                "values": {k: float(np.median(fit.posterior[k].values))
+                           for k in unknown_keys(model.scene, cand)},
                 "q5": float(np.quantile(fit.posterior[key].values, 0.05)),
                 "q95": float(np.quantile(fit.posterior[key].values, 0.95))}
     r.snippet = _snippet(format_source(model.scene.source), text)
@@ -655,6 +614,9 @@ def diagnose(model, idata, *, confirm_top: int = 2, alpha: float = 0.05, outdir=
             ranked = confirmed + [r for r in ranked if not r.confirmed]
             for r in evidence_ties(winner, confirmed):
                 r.tied_with = f"{winner.effect}@{winner.target}"
+            probs = model_probabilities({id(r): r.log_evidence for r in confirmed})
+            for r in confirmed:
+                r.model_prob = probs[id(r)]
     ranked = tie_twins(ranked)
     t2 = time.perf_counter()
     top = ranked[0] if ranked else None

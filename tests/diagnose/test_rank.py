@@ -132,13 +132,15 @@ def test_a_failing_refit_leaves_the_candidate_unconfirmed(quadratic, monkeypatch
 
 
 def test_refits_stop_at_k_once_one_explains_the_misfit(quadratic, monkeypatch):
-    """Past the first k, candidates are refitted only while no refit reached the noise."""
+    """Past the first k, candidates are refitted only while no refit reached the noise (its
+    check consistent)."""
     import copy
 
     from physdsl.diagnose import rank
 
     def refit(model, r, *args):
         r.rms_before, r.rms_after, r.confirmed = 2.0, (1.0 if r is explained else 5.0), True
+        r.consistent_after = r is explained  # its check finds no systematic residual
 
     monkeypatch.setattr(rank, "_refit", refit)
     monkeypatch.setattr(rank, "quick_fit", lambda model, seed=0: quadratic.idata)
