@@ -13,16 +13,30 @@ import numpy as np
 import numpyro.distributions as nd
 from numpyro.distributions import constraints as C
 
-# arguments that are plain numbers whatever the unknown's unit
+# arguments that are plain numbers whatever the unknown's unit (shapes, exponents, probabilities)
 DIMLESS_ARGS = {"concentration", "concentration0", "concentration1", "df", "probs", "logits",
-                "total_count", "skewness", "tailweight", "eta", "dimension", "num_categories"}
-# distributions whose loc/scale live in log space (so they take no unit)
-LOG_SPACE = {"log_normal", "log_uniform"}
-# argument -> power of the unknown's dimension it carries (default 1)
+                "total_count", "skewness", "tailweight", "eta", "dimension", "num_categories",
+                "alpha", "sharpness", "gate", "temperature", "asymmetry", "quantile"}
+# ... and those that are plain numbers in one distribution only (beta_proportion's mean is in (0, 1))
+DIMLESS_OF = {"beta_proportion": {"mean"}}
+# distributions whose loc/scale live in log space (so they take no unit); log_uniform is not
+# one: its low and high bound the value itself and carry its unit (its support is [low, high])
+LOG_SPACE = {"log_normal", "hurdle_log_normal"}
+# argument -> power of the unknown's dimension it carries (default 1), and per-distribution
+# exceptions (inverse_gamma's rate scales the value: 1 / Gamma(concentration, rate))
 ARG_POWER = {"rate": -1, "covariance_matrix": 2, "precision_matrix": -2}
+POWER_OF = {"inverse_gamma": {"rate": 1}}
 _NOT_DISTS = {"Distribution", "ExpandedDistribution", "TransformedDistribution", "Independent",
               "MaskedDistribution", "FoldedDistribution", "ImproperUniform", "Unit",
               "DiscreteUniform_"}
+
+
+def unit_power(dist: str, arg: str) -> float | None:
+    """The power of the unknown's dimension that ``dist``'s argument ``arg`` carries (1: the
+    unknown's own unit, -1 its inverse); None when the argument is a plain number."""
+    if dist in LOG_SPACE or arg in DIMLESS_ARGS or arg in DIMLESS_OF.get(dist, ()):
+        return None
+    return POWER_OF.get(dist, {}).get(arg, ARG_POWER.get(arg, 1))
 
 
 def snake(name: str) -> str:

@@ -13,8 +13,7 @@ from pathlib import Path
 from ..errors import PhysError, PhysImportError, PhysNameError, Span
 from . import ast
 from .parser import parse
-
-STDLIB_DIR = Path(__file__).resolve().parent.parent.parent / "stdlib"
+from .shipped import STDLIB_DIR
 
 
 @dataclass

@@ -8,15 +8,13 @@ from __future__ import annotations
 
 import re
 from functools import lru_cache
-from pathlib import Path
 
 from lark import Lark, Token, Transformer, v_args
 from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
 
 from ..errors import PhysSyntaxError, Span
 from . import ast
-
-GRAMMAR_DIR = Path(__file__).resolve().parent.parent.parent / "grammar"
+from .shipped import GRAMMAR_DIR
 
 
 @lru_cache(maxsize=1)

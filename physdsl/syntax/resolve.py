@@ -518,22 +518,23 @@ class Resolver:
                            f"e.g. {node.name}({', '.join(n + ': ...' for n in missing)})")
         # dimensions
         log_space = node.name in dists.LOG_SPACE
+        power = {n: dists.unit_power(node.name, n) for n in bound}
         target = dim
         if target is None:
             for n, (a, r) in bound.items():
-                if r.dim is not None and n not in dists.DIMLESS_ARGS and not log_space:
-                    target = r.dim ** (1.0 / dists.ARG_POWER.get(n, 1))
+                if r.dim is not None and power[n] is not None:
+                    target = r.dim ** (1.0 / power[n])
                     break
         for n, (a, r) in bound.items():
             if r.dim is None:
                 continue
-            if n in dists.DIMLESS_ARGS or log_space:
+            if power[n] is None:
                 if not r.dim.dimensionless:
                     why = "lives in log space" if log_space else "is a plain number"
                     raise self.err(PhysUnitError, f"{node.name}'s '{n}' {why}; it takes no unit",
                                    a.value.span, "the unknown takes the field's unit (SI)")
             elif target is not None:
-                want = target ** dists.ARG_POWER.get(n, 1)
+                want = target ** power[n]
                 if not r.dim.same(want):
                     raise self.err(PhysUnitError, f"{node.name}'s '{n}' is {r.dim.name()}, but the "
                                    f"value needs {want.name()}", a.value.span,
