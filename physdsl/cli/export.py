@@ -18,6 +18,7 @@ def register(app: typer.Typer) -> None:
         widen: float = typer.Option(1.0, "--widen", help="Multiply every fitted scale (unconstrained space) by this factor."),
         observe: bool = typer.Option(True, "--observe/--no-observe", help="Keep observe blocks, or write a pure generator."),
         force: bool = typer.Option(False, "--force", help="Overwrite an existing output file."),
+        fmt: str = typer.Option("phys", "--format", help="phys (a proto-program, default) or mjcf (the scene at the posterior medians, for MuJoCo)."),
     ) -> None:
         """Export a posterior as a scene program whose priors are the fitted posterior."""
         from ..export import export
@@ -25,6 +26,15 @@ def register(app: typer.Typer) -> None:
         from ..io import refuse_overwrite, write_text
 
         refuse_overwrite(out, force)
+        if fmt == "mjcf":
+            from ..mjcf.export import export_mjcf_cli
+
+            export_mjcf_cli(scene, posterior, out, bool(free or drop) or widen != 1.0 or not observe)
+            return
+        if fmt != "phys":
+            from ..errors import UsageError
+
+            raise UsageError(f"unknown --format '{fmt}'", hint="use phys or mjcf")
         idata, run = load_run(posterior)
         text = export(scene, idata, free=tuple(free or ()), drop=tuple(drop or ()), widen=widen,
                       observe=observe, out_path=out, run=run)

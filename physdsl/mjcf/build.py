@@ -13,7 +13,7 @@ KEYWORDS = {"import", "scene", "world", "param", "body", "ground", "joint", "con
             "below", "true", "false", "pi", "marker", "for", "in"}
 
 
-def number(x: float, digits: int = 12) -> ast.Expr:
+def number(x: float, digits: int = 15) -> ast.Expr:
     """A literal for ``x`` rounded to ``digits`` significant digits (negative as ``-x``)."""
     v = float(f"{float(x):.{digits}g}")
     if v == 0:
@@ -24,17 +24,17 @@ def number(x: float, digits: int = 12) -> ast.Expr:
     return ast.Neg(ast.Num(text)) if v < 0 else ast.Num(text)
 
 
-def quantity(x, unit: str | None = None) -> ast.Expr:
+def quantity(x, unit: str | None = None, digits: int = 15) -> ast.Expr:
     """A scalar or vector literal, followed by ``unit`` when given."""
     arr = np.asarray(x, dtype=float)
     if arr.ndim == 0:
-        node = number(arr)
+        node = number(arr, digits)
         if unit is None:
             return node
         if isinstance(node, ast.Neg):
             return ast.Neg(ast.WithUnit(node.operand, unit))
         return ast.WithUnit(node, unit)
-    node = ast.Vector(tuple(number(v) for v in arr))
+    node = ast.Vector(tuple(number(v, digits) for v in arr))
     return node if unit is None else ast.WithUnit(node, unit)
 
 

@@ -118,7 +118,7 @@ class _Reader:
         rgba = self.m.geom_rgba[g]
         if np.allclose(rgba, (0.5, 0.5, 0.5, 1.0)):
             return None
-        return field("color", quantity(rgba[:3]))
+        return field("color", quantity(rgba[:3], digits=6))  # float32 in MuJoCo
 
     def _collides(self, g: int) -> bool:
         return bool(self.m.geom_contype[g] or self.m.geom_conaffinity[g]) or \
@@ -331,7 +331,8 @@ class _Reader:
                 rest = m.qpos_spring[qa] - m.qpos0[qa]
                 self.effects.append(ast.EffectItem("joint_spring", (name,), block(
                     field("stiffness", quantity(k, u["stiff"])), field("rest", quantity(rest, u["q"])))))
-        if np.any(m.dof_dampingpoly[va]) or np.any(m.jnt_stiffnesspoly[j]):
+        poly = [getattr(m, a, None) for a in ("dof_dampingpoly", "jnt_stiffnesspoly")]
+        if any(p is not None and np.any(p[i]) for p, i in zip(poly, (va, j))):
             self.notes.add(f"joint '{name}': polynomial damping/stiffness terms are not expressible")
         if m.dof_armature[va] > 0:
             self.notes.add(f"joint '{name}': armature {m.dof_armature[va]:.6g} (rotor inertia) is "

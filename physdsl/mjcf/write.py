@@ -48,6 +48,15 @@ def _principal(inertia: np.ndarray):
     return w, q
 
 
+def _set_scalar(obj, attr: str, value: float) -> None:
+    """Set a joint coefficient: a number in MuJoCo 3, the linear term of a polynomial in 4."""
+    current = getattr(obj, attr)
+    if np.ndim(current):
+        setattr(obj, attr, np.r_[value, np.zeros(np.size(current) - 1)])
+    else:
+        setattr(obj, attr, value)
+
+
 def _control_names(scene) -> dict[str, str]:
     """Target -> control name, read from the scene's source (the Scene keeps only the effect)."""
     from ..syntax import ast, parse
@@ -183,13 +192,13 @@ class _Writer:
             elif use.effect in ("joint_damping", "joint_friction", "joint_spring") and t[0] in self.joint_of:
                 jt = self.joint_of[t[0]]
                 if use.effect == "joint_damping":
-                    jt.damping = [float(p["coefficient"]), 0.0, 0.0]
+                    _set_scalar(jt, "damping", float(p["coefficient"]))
                 elif use.effect == "joint_friction":
                     jt.frictionloss = float(p["torque"])
                     self.notes.add(f"joint_friction on {t[0]}: MuJoCo's frictionloss is exact dry "
                                    "friction, physdsl's is smoothed (tanh)")
                 else:
-                    jt.stiffness = [float(p["stiffness"]), 0.0, 0.0]
+                    _set_scalar(jt, "stiffness", float(p["stiffness"]))
                     jt.springref = float(p["rest"])
             elif use.effect == "control_force" and t[0] in self.joint_of:
                 name = controls.get(t[0], f"{t[0]}_control")
