@@ -1,16 +1,19 @@
 """Run a backend on a compiled Model: initialise, warm up, sample in blocks with checkpoints.
 
-Every random number comes from ``seed`` through fixed splits (block b uses
-``fold_in(key, b)``), so a run interrupted between blocks and resumed from its checkpoint
-yields exactly the draws of an uninterrupted run. Output: arviz InferenceData with
+Every random number comes from ``seed`` through fixed splits (draw j of a chain from
+``fold_in(its key, j)``, however the draws were cut into calls), so a run interrupted anywhere
+and resumed from its checkpoint yields exactly the draws of an uninterrupted run. SIGINT and
+SIGTERM stop a run within about a second of compiled work (``interrupt``, ``blocks.Pacer``);
+the checkpoint is written after every call while sampling. Output: arviz InferenceData with
 posterior, sample_stats, posterior_predictive, observed_data and log_likelihood groups.
 """
 from __future__ import annotations
 
 import hashlib
+import json
 import pickle
-import signal
-from contextlib import contextmanager
+import sys
+import time
 from dataclasses import asdict, replace
 from pathlib import Path
 
@@ -19,27 +22,52 @@ import numpy as np
 
 from .. import io
 from ..errors import InferenceError, UsageError
+from .backends.map import LaplaceError
 from .base import Settings, get_backend
-from .backends.map import find_modes, major_modes
+from .blocks import Pacer
+from .interrupt import Interrupted, critical, termination
 from .problem import make_problem, model_problem
 from .progress import Stages
 
 CHECKPOINT = "checkpoint.pkl"
+SAMPLE_CALL_S = 1.0  # seconds of sampling per call, and so between checkpoints
+CENTRE_KEY = 1 << 20  # fold_in(k_init, .) of the prior's centre (prior draws use 0, 1, ...)
 
 
 def infer(model, backend: str = "nuts", settings: Settings | None = None, outdir=None,
           resume: bool = False, force: bool = False, progress: bool = True, positions=None,
-          **overrides):
-    """Posterior over every unknown of ``model`` as arviz InferenceData (saved if ``outdir``).
+          init: dict | str | None = None, **overrides):
+    """Posterior over every unknown of ``model`` as arviz InferenceData (saved if ``outdir``,
+    with the fit's quality: ``output.fit_quality``).
 
     ``positions`` (chains, dim): flat unconstrained starts that replace the initialisation
-    (prior draws and their optimisation), e.g. modes found once and shared by two backends."""
+    (prior draws and their optimisation), e.g. modes found once and shared by two backends.
+    ``init``: start values by name (numbers in SI, or value text with units: ``{"ball.velocity":
+    "(3, 0, 2.5) m/s"}``, or the CLI's ``"name=value, ..."`` text), the first start (see
+    ``init.with_init``). SIGINT/SIGTERM raise ``interrupt.Interrupted`` within seconds,
+    leaving a checkpoint that ``resume=True`` continues exactly."""
     settings = replace(settings or Settings(), **overrides)
+    if init:
+        from .init import with_init
+
+        settings = with_init(model, settings, init)
+    with termination():
+        try:
+            return _run(model, backend, settings, outdir, resume, force, progress, positions)
+        except Interrupted as ex:
+            if outdir is not None and (Path(outdir) / CHECKPOINT).exists():
+                ex.note = (f"the checkpoint in {outdir} keeps the draws so far: continue with "
+                           "--resume (resume=True) and the same options")
+            raise
+
+
+def _run(model, backend, settings, outdir, resume, force, progress, positions):
     algo = get_backend(backend)
     out = io.prepare_outdir(outdir, force=force, resume=resume) if outdir else None
     stages = Stages(enabled=progress)
     ckpt_path = out / CHECKPOINT if out else None
     fingerprint = run_fingerprint(model, backend, settings, positions)
+    basins: list[dict] = []  # the multistart's basins (``multistart.search``)
     ckpt = _load_checkpoint(ckpt_path, fingerprint) if (resume and ckpt_path) else None
 
     key = jax.random.PRNGKey(settings.seed)
@@ -50,64 +78,149 @@ def infer(model, backend: str = "nuts", settings: Settings | None = None, outdir
             if positions.shape != (settings.chains, problem.dim):
                 raise UsageError(f"start positions of shape {positions.shape} for "
                                  f"{settings.chains} chains of {problem.dim} dimensions")
-        else:
-            steps = settings.init_steps if (ckpt is None and algo.name != "map") else 0
-            problem, positions = starts(model, settings, steps)
+        else:  # multistart (MAP's own optimisation then starts at the modes found)
+            steps = 0 if ckpt is not None else (
+                max(settings.warmup, 50) if algo.name == "map" else settings.init_steps)
+            problem, positions = starts(model, settings, steps, basins)
         st.done(f"{problem.dim} unconstrained dimensions, {settings.chains} chains")
+    if basins and progress:
+        from .multistart import describe
 
-    with _graceful_termination():
-        if ckpt is None:
-            with stages.stage("warmup", total=settings.warmup) as st:
-                states, params, warm_info = algo.warmup(problem, positions, k_warm, settings,
-                                                        on_block=st.advance)
-                jax.block_until_ready(states)
-                if st.count < settings.warmup:  # a backend without blocks (map)
-                    st.advance(settings.warmup - st.count)
+        print("\n".join(describe(basins)), file=sys.stderr, flush=True)
+
+    if ckpt is None:
+        try:
+            states, params, warm_info = _warmup(algo, problem, positions, k_warm, settings,
+                                                stages)
+        except LaplaceError as err:
+            if out is not None and err.mode is not None:
+                _keep_mode(out, model, problem, err, backend, settings, stages)
+            raise
+        with critical():
             ckpt = {"fingerprint": fingerprint, "states": _np(states), "params": _np(params),
                     "warm_info": _np(warm_info), "draws": [], "stats": []}
             _save_checkpoint(ckpt_path, ckpt)
-        states, params = ckpt["states"], ckpt["params"]
-        done = sum(d.shape[1] for d in ckpt["draws"])
-        with stages.stage("sampling", total=settings.samples, completed=done) as st:
-            block = 0 if not done else len(ckpt["draws"])
-            while done < settings.samples:
-                n = min(settings.block, settings.samples - done)
-                states, draws, stats = algo.sample(problem, states, params,
-                                                   jax.random.fold_in(k_sample, block), n, settings)
-                ckpt["states"] = _np(states)
-                ckpt["draws"].append(np.asarray(draws))
-                ckpt["stats"].append(_np(stats))
+    states, params = ckpt["states"], ckpt["params"]
+    done = sum(d.shape[1] for d in ckpt["draws"])
+    pacer = Pacer(SAMPLE_CALL_S)
+    with stages.stage("sampling", total=settings.samples, completed=done) as st:
+        while done < settings.samples:
+            n = pacer.next(settings.samples - done, settings.block)
+            t0 = time.perf_counter()
+            new_states, draws, stats = algo.sample(problem, states, params, k_sample, n,
+                                                   settings, start=done)
+            new_states, draws, stats = _np(new_states), np.asarray(draws), _np(stats)
+            pacer.record(n, time.perf_counter() - t0)
+            with critical():  # draws, states and the file change together
+                states = ckpt["states"] = new_states
+                ckpt["draws"].append(draws)
+                ckpt["stats"].append(stats)
                 _save_checkpoint(ckpt_path, ckpt)
                 done += n
-                block += 1
-                st.advance(n)
+            st.advance(n)
 
     flat = np.concatenate(ckpt["draws"], axis=1)  # (chains, samples, dim)
     stats = {k: np.concatenate([s[k] for s in ckpt["stats"]], axis=1) for k in ckpt["stats"][0]}
     from .output import build_inference_data
 
-    idata = build_inference_data(model, problem, flat, stats, settings)
+    with stages.stage("predictions", total=flat.shape[0] * flat.shape[1]) as st:
+        idata = build_inference_data(model, problem, flat, stats, settings, on_chunk=st.advance)
+    if basins:
+        idata.attrs["basins"] = json.dumps(basins)
     if not np.all(np.isfinite(flat)):
         raise InferenceError("sampler produced non-finite draws",
                              hint="try --backend rmh or tighter priors")
     if out is not None:
         from .output import save_run
 
-        save_run(out, model, idata, backend, settings)
+        quality = _fit_quality(model, idata, stages)
+        save_run(out, model, idata, backend, settings, extra={"fit_quality": quality})
+        if basins:
+            from .multistart import record_basins
+
+            record_basins(out / "run.json", basins)
         if ckpt_path.exists():
             ckpt_path.unlink()
     return idata
 
 
-def starts(model, settings: Settings, optimise_steps: int):
-    """(Problem, flat unconstrained starts (chains, dim)): prior draws (the first at
-    ``settings.start``), each optimised for ``optimise_steps`` when positive, chains that end
-    in a minor basin moved to the best mode (``major_modes``). Random numbers as in ``infer``."""
+def _warmup(algo, problem, positions, key, settings, stages):
+    """The backend's warmup under progress stages: for MAP each start's optimisation, then
+    the Laplace step; for samplers the warmup's transitions."""
+    if algo.name != "map":
+        with stages.stage("warmup", total=settings.warmup) as st:
+            out = algo.warmup(problem, positions, key, settings, on_block=st.advance)
+            jax.block_until_ready(out[0])
+        return out
+    opt = stages.start("optimise", total=len(positions))
+    laplace = []
+
+    def on_laplace():
+        opt.finish()
+        laplace.append(stages.start("laplace"))
+
+    try:
+        out = algo.warmup(problem, positions, key, settings, on_block=opt.advance,
+                          on_laplace=on_laplace)
+    except BaseException:
+        for st in [opt, *laplace]:
+            st.stop()
+        raise
+    for st in [opt, *laplace]:
+        st.finish()
+    return out
+
+
+def _fit_quality(model, idata, stages) -> dict:
+    """``output.fit_quality`` under a progress stage, kept in ``idata.attrs`` too."""
+    from .output import fit_quality
+
+    with stages.stage("fit quality"):
+        q = fit_quality(model, idata)
+    idata.attrs["fit_quality"] = json.dumps(q)
+    return q
+
+
+def _keep_mode(out, model, problem, err, backend, settings, stages):
+    """Where MAP's Laplace step failed: write the mode (posterior.nc with the mode as a single
+    draw, summary.csv, run.json marking ``laplace: failed`` with the flat directions) and say
+    so in ``err`` (``err.idata``: the mode's InferenceData)."""
+    from .output import build_inference_data, save_run
+
+    flat = np.asarray(err.mode, dtype=float)[None, None, :]
+    with stages.stage("predictions", total=1) as st:
+        idata = build_inference_data(model, problem, flat, {}, settings, on_chunk=st.advance)
+    idata.attrs["laplace"] = "failed"
+    quality = _fit_quality(model, idata, stages)
+    directions = [{"curvature": c, "components": [{"name": n, "weight": w} for n, w in comps]}
+                  for c, comps in err.directions]
+    save_run(out, model, idata, backend, settings,
+             extra={"laplace": "failed", "laplace_error": err.message,
+                    "laplace_directions": directions, "log_density_at_mode": err.log_density,
+                    "fit_quality": quality})
+    err.idata = idata
+    err.message += (f". The mode is kept in {out} (posterior.nc holds it as a single draw, "
+                    "summary.csv, run.json with laplace: failed)")
+
+
+def starts(model, settings: Settings, optimise_steps: int, basins: list | None = None):
+    """(Problem, flat unconstrained starts (chains, dim)): ``settings.start`` where given, a
+    start from the data's first samples, the prior's centre and prior draws
+    (``multistart.start_points``); each optimised for ``optimise_steps`` when positive, the
+    modes grouped into basins (appended to ``basins`` where given) and chains that end in a
+    minor basin moved to the best mode (``multistart.search``). Random numbers as in ``infer``."""
+    from .multistart import search, start_points
+
     k_init = jax.random.split(jax.random.PRNGKey(settings.seed), 3)[0]
     problem, positions = make_problem(model, k_init, settings.chains, dict(settings.start))
+    positions, labels = start_points(problem, positions, jax.random.fold_in(k_init, CENTRE_KEY),
+                                     given=bool(settings.start))
     if optimise_steps > 0:
-        positions = major_modes(problem, find_modes(problem, positions, optimise_steps))[0]
-    return problem, positions
+        found = search(problem, positions, labels, optimise_steps)
+        positions = found.modes
+        if basins is not None:
+            basins.extend(found.basins)
+    return problem, jax.numpy.asarray(positions)
 
 
 def run_fingerprint(model, backend: str, settings: Settings, positions=None) -> str:
@@ -119,6 +232,7 @@ def run_fingerprint(model, backend: str, settings: Settings, positions=None) -> 
     h.update(model.scene.source.encode())
     for o in model.scene.observations:
         h.update(np.ascontiguousarray(o.values).tobytes())
+    h.update(b"draw j from fold_in(key, j)")  # checkpoints of the per-block keys differ
     h.update(backend.encode())
     h.update(repr(sorted(asdict(settings).items())).encode())
     return h.hexdigest()
@@ -146,23 +260,6 @@ def _load_checkpoint(path: Path, fingerprint: str):
         raise UsageError(f"the checkpoint in '{path.parent}' belongs to another scene, data or "
                          "settings", hint="resume with the same options, or use --force")
     return ckpt
-
-
-@contextmanager
-def _graceful_termination():
-    """Turn SIGTERM into KeyboardInterrupt so a kill leaves the last checkpoint intact."""
-    def handler(signum, frame):
-        raise KeyboardInterrupt
-
-    try:
-        old = signal.signal(signal.SIGTERM, handler)
-    except ValueError:  # not in the main thread
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, old)
 
 
 __all__ = ["infer", "run_fingerprint"]

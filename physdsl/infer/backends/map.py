@@ -157,17 +157,20 @@ def find_modes(problem, positions, steps: int = 300) -> jnp.ndarray:
 MINOR_MODE = 10.0  # log-density units below the best mode: a basin with a negligible share
 
 
-def major_modes(problem, modes) -> tuple[np.ndarray, np.ndarray, int]:
+def major_modes(problem, modes, lps=None) -> tuple[np.ndarray, np.ndarray, int]:
     """(modes, log densities, index of the best) where every mode more than ``MINOR_MODE``
-    below the best (or non-finite) is replaced by the best.
+    below the best (or non-finite) is replaced by the best. ``lps``: the modes' log
+    densities where the caller has them already (each costs a rollout).
 
     Such a basin holds a negligible share of the posterior (e^-10 at its peak), yet a chain
     started there stays: on contact scenes an optimisation from a prior draw can settle on a
     kink (a block whose friction makes it stick cannot feel a change of mu). Shared by MAP's
     Laplace mixture and by the starts of every sampler (``infer.run``)."""
-    vg = value_and_grad_fn(problem)
     modes = np.array(modes, dtype=float)  # a writable copy
-    lps = np.array([float(vg(jnp.asarray(m))[0]) for m in modes])
+    if lps is None:
+        vg = value_and_grad_fn(problem)
+        lps = [float(vg(jnp.asarray(m))[0]) for m in modes]
+    lps = np.array(lps, dtype=float)
     lps = np.where(np.isfinite(lps), lps, -np.inf)
     best = int(np.argmax(lps))
     minor = lps < lps[best] - MINOR_MODE

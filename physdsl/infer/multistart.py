@@ -1,0 +1,209 @@
+"""Multistart mode search: several starts, Levenberg-Marquardt from each, basins reported.
+
+The starts are a start from the data (``data_starts``: initial-state unknowns at what the
+first samples say), the prior's centre (the coordinate-wise median of prior draws in
+unconstrained space) and prior draws; a given start (``Settings.start``) comes first. Each is
+optimised by ``backends.map.find_mode``; the modes are grouped into basins (two modes share a
+basin when they lie within ``SAME_BASIN_SD`` Laplace standard deviations of each other, by the
+Gauss-Newton curvature of the better one), and each basin is reported with its log density
+and residual RMS in noise units. The best mode wins (``backends.map.major_modes``: chains in a
+basin far below it move there). A fit that never reaches the basin where a contact seen in
+the data happens loses by log density to one that does, once any start gets there: the start
+from the data puts the throw where the first samples say, so it does.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from numpyro.infer.util import constrain_fn, potential_energy
+
+from .backends.map import find_mode, major_modes
+from .base import cached, gauss_newton_fn, value_and_grad_fn
+from .data_starts import data_start, prior_layout
+from .problem import prior_draws_unconstrained, unraveler
+
+SAME_BASIN_SD = 3.0  # modes closer than this many Laplace sd (Mahalanobis) share a basin
+CENTRE_DRAWS = 256  # prior draws whose coordinate-wise median is the prior's centre
+
+
+@dataclass
+class Search:
+    """Modes (one per chain, minor ones moved to the best), the basins found, the best's index."""
+
+    modes: np.ndarray  # (chains, dim)
+    basins: list[dict] = field(default_factory=list)
+    best: int = 0
+
+
+def prior_centre(problem, key) -> np.ndarray:
+    """The prior's centre in unconstrained space: the coordinate-wise median of prior draws."""
+    return np.median(prior_draws_unconstrained(problem, key, CENTRE_DRAWS), axis=0)
+
+
+def start_points(problem, positions, key, given: bool = False) -> tuple[np.ndarray, list[str]]:
+    """(starts (chains, dim), their labels): row 0 kept where ``given`` (a start the user gave),
+    then the start from the data, the prior's centre, and the rows of ``positions`` (finite
+    prior draws) in the remaining places."""
+    positions = np.asarray(positions, dtype=float)
+    chains = positions.shape[0]
+    rows, labels = [], []
+    if given:
+        rows.append(positions[0])
+        labels.append("given")
+    centre = prior_centre(problem, key)
+    draws = list(positions[1:] if given else positions)
+    from_data = data_start(problem, draws[0] if draws else positions[0], others=(centre,))
+    if from_data is not None:
+        rows.append(from_data)
+        labels.append("data")
+    rows.append(centre)
+    labels.append("prior centre")
+    for i, d in enumerate(draws):
+        rows.append(d)
+        labels.append(f"prior draw {i + 1}")
+    return np.stack(rows[:chains]), labels[:chains]
+
+
+def search(problem, starts, labels, steps: int, on_start=None) -> Search:
+    """Optimise from every start, group the modes into basins, move minor ones to the best.
+    ``on_start(i, label)``: called before start ``i``'s optimisation (progress)."""
+    modes = []
+    for i, x in enumerate(np.asarray(starts)):
+        if on_start is not None:
+            on_start(i, labels[i])
+        modes.append(find_mode(problem, x, steps))
+    modes = np.stack(modes)
+    gn = gauss_newton_fn(problem)
+    if gn is not None:
+        evals = [gn(jnp.asarray(m)) for m in modes]
+        lps = np.array([float(v) for v, _, _ in evals])
+        curv = [np.asarray(H, dtype=float) for _, _, H in evals]
+    else:
+        vg = value_and_grad_fn(problem)
+        lps = np.array([float(vg(jnp.asarray(m))[0]) for m in modes])
+        curv = [None] * len(modes)
+    lps = np.where(np.isfinite(lps), lps, -np.inf)
+    rms = np.array([residual_rms(problem, m, lp) for m, lp in zip(modes, lps)])
+    basins = _cluster(problem, modes, lps, rms, curv, labels)
+    kept, _, best = major_modes(problem, modes, lps=lps)
+    return Search(kept, basins, best)
+
+
+def _cluster(problem, modes, lps, rms, curv, labels) -> list[dict]:
+    """Basins, best first: each mode joins the first better basin within ``SAME_BASIN_SD``."""
+    order = [i for i in np.argsort(-lps) if np.isfinite(lps[i])]
+    heads: list[int] = []
+    members: dict[int, list[int]] = {}
+    for i in order:
+        home = next((h for h in heads if _same(modes[h], modes[i], curv[h], lps[h], lps[i],
+                                               rms[h], rms[i])), None)
+        if home is None:
+            heads.append(i)
+            members[i] = [i]
+        else:
+            members[home].append(i)
+    out = []
+    for h in heads:
+        out.append({"log_density": float(lps[h]),
+                    "rms_sigma": None if not np.isfinite(rms[h]) else float(rms[h]),
+                    "starts": [labels[i] for i in members[h]],
+                    "values": _scalar_values(problem, modes[h])})
+    failed = [labels[i] for i in range(len(modes)) if not np.isfinite(lps[i])]
+    if failed:
+        out.append({"log_density": None, "rms_sigma": None, "starts": failed, "values": {},
+                    "note": "no finite log density"})
+    return out
+
+
+def _same(a, b, H, lp_a, lp_b, rms_a, rms_b) -> bool:
+    d = b - a
+    if H is not None and np.all(np.isfinite(H)):
+        return float(d @ H @ d) <= SAME_BASIN_SD**2
+    # no curvature: the same log density and residual to rounding
+    return abs(lp_a - lp_b) <= 1e-6 * max(1.0, abs(lp_a)) and (
+        not np.isfinite(rms_a) or abs(rms_a - rms_b) <= 1e-6)
+
+
+def residual_rms(problem, x, lp=None) -> float:
+    """RMS of the standardised residuals at ``x`` (noise units), read off the log density
+    where the likelihood is least squares (no rollout beyond the log density's); NaN else."""
+    model = problem.model
+    if not model.least_squares:
+        return float("nan")
+    if lp is None:
+        lp = float(value_and_grad_fn(problem)(jnp.asarray(x))[0])
+    if not np.isfinite(lp):
+        return float("nan")
+    prior_neg, norm, count = _likelihood_constants(problem)(jnp.asarray(x))
+    loglik = lp + float(prior_neg)
+    chi2 = -2.0 * (loglik + float(norm))
+    return float(np.sqrt(max(chi2, 0.0) / max(float(count), 1.0)))
+
+
+def _likelihood_constants(problem):
+    """Jitted x -> (-log prior, sum of log(sigma sqrt(2 pi)) over measured residuals, their
+    number): with them, -2 (log likelihood + the sum) is the residuals' square sum."""
+    model = problem.model
+
+    def build():
+        unravel, _ = unraveler(prior_layout(model))
+
+        def fn(x, data):
+            u = unravel(x)
+            values = constrain_fn(model.prior_values, (), {}, u)
+            norm, count = 0.0, 0.0
+            for o in model.observed:
+                m = jnp.asarray(data[o.obs.name]["mask"], dtype=float)
+                scale = model.noise_scale(o.obs, values)
+                norm = norm + jnp.sum(m * jnp.log(scale * jnp.sqrt(2 * jnp.pi)))
+                count = count + jnp.sum(m)
+            return potential_energy(model.prior_values, (), {}, u), norm, count
+
+        return jax.jit(fn)
+
+    f = cached(problem, "likelihood-constants", build)
+    return lambda x: f(x, problem.data)
+
+
+def _scalar_values(problem, x) -> dict:
+    """Constrained values of the unknowns at ``x`` (scalars as floats, vectors as lists)."""
+    model = problem.model
+
+    def build():
+        unravel, _ = unraveler(prior_layout(model))
+        return jax.jit(lambda x: constrain_fn(model.prior_values, (), {}, unravel(x)))
+
+    values = cached(problem, "constrain-prior", build)(jnp.asarray(x))
+    return {k: np.asarray(v).tolist() for k, v in values.items()}
+
+
+def describe(basins: list[dict]) -> list[str]:
+    """The basins as lines for the terminal, best first."""
+    lines = [f"basins found: {sum(1 for b in basins if b['log_density'] is not None)} "
+             f"(from {sum(len(b['starts']) for b in basins)} starts)"]
+    for k, b in enumerate(basins):
+        if b["log_density"] is None:
+            lines.append(f"  starts with no finite log density: {', '.join(b['starts'])}")
+            continue
+        rms = "n/a" if b["rms_sigma"] is None else f"{b['rms_sigma']:.2f}σ"
+        tag = "best" if k == 0 else f"{basins[0]['log_density'] - b['log_density']:.1f} below"
+        lines.append(f"  {k + 1}. log density {b['log_density']:.1f} ({tag}), residual RMS {rms}, "
+                     f"from {', '.join(b['starts'])}")
+    return lines
+
+
+def record_basins(run_json, basins: list[dict]) -> None:
+    """Add ``basins`` to a run's run.json (written atomically)."""
+    from .. import io
+
+    run = json.loads(run_json.read_text()) if run_json.exists() else {}
+    run["basins"] = basins
+    io.write_json(run_json, run)
+
+
+__all__ = ["Search", "describe", "prior_centre", "record_basins", "residual_rms", "search",
+           "start_points"]
