@@ -192,7 +192,7 @@ class Model:
         self.images = tuple(o for o in scene.observations if o.quantity == "image")
         # the rollout fields the likelihood reads (all when images are rendered from it)
         self.rollout_fields = None if self.images else tuple(sorted(
-            {"t"} | {trajectory.QUANTITIES[o.obs.quantity][0] for o in self.observed}))
+            {"t"} | {trajectory.source(o.obs, self.simulator) for o in self.observed}))
 
     # -- pieces -------------------------------------------------------------------------
     def _prepare(self, obs: Observation) -> ObservedTrajectory:

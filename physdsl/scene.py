@@ -92,6 +92,18 @@ class Body:
 
 
 @dataclass(frozen=True)
+class Marker:
+    """A massless point fixed in a body's frame (MJCF's site): ``position`` (3,) m in the body
+    frame, relative to the body's origin. Observable as ``NAME.position`` / ``NAME.velocity``."""
+
+    name: str
+    body: str
+    position: Expr  # (3,) m, body frame
+    color: Expr | None = None  # (3,) RGB in [0, 1]
+    span: Span | None = None
+
+
+@dataclass(frozen=True)
 class DH:
     """Denavit-Hartenberg parameters (classic convention) of one joint of a serial arm."""
 
@@ -197,7 +209,8 @@ class Observation:
     """Measured data of one observable, read and checked.
 
     quantity: position | orientation | velocity | angular_velocity (bodies, D = 3/4/3/3),
-    angle | angular_rate (hinge/slider joints, D = 1), image (cameras). ``times`` (N,) sorted,
+    position | velocity (markers, D = 3), angle | angular_rate (hinge/slider joints, D = 1),
+    image (cameras). ``times`` (N,) sorted,
     ``values`` (N, D) SI, ``mask`` (N, D) True where a value was measured. For images
     ``frames`` lists the image files, one per time.
     """
@@ -268,12 +281,16 @@ class Scene:
     effect_library: Mapping[str, EffectDecl] = field(default_factory=dict)
     path: Path | None = None
     source: str = ""
+    markers: tuple[Marker, ...] = ()
 
     def body(self, name: str) -> Body:
         return next(b for b in self.bodies if b.name == name)
 
     def joint(self, name: str) -> Joint:
         return next(j for j in self.joints if j.name == name)
+
+    def marker(self, name: str) -> Marker:
+        return next(m for m in self.markers if m.name == name)
 
     def unknown(self, name: str) -> Unknown:
         return next(u for u in self.unknowns if u.name == name)

@@ -59,11 +59,24 @@ def interpolation(grid: np.ndarray, times: np.ndarray, file: str = "") -> Interp
     return Interpolation(np.concatenate([lo, hi]).astype(np.int32), w)
 
 
+# a marker's quantity -> its Rollout field
+MARKER_SOURCES = {"position": "marker_pos", "velocity": "marker_vel"}
+
+
+def source(obs: Observation, simulator) -> str:
+    """The Rollout field that ``obs`` is read from."""
+    if obs.target in getattr(simulator, "marker_names", ()):
+        return MARKER_SOURCES[obs.quantity]
+    return QUANTITIES[obs.quantity][0]
+
+
 def model_track(rollout, simulator, obs: Observation):
     """The modelled quantity of ``obs`` over the whole rollout grid: (T, D)."""
-    source, _, _ = QUANTITIES[obs.quantity]
-    data = getattr(rollout, source)
-    if source.startswith("body"):
+    field = source(obs, simulator)
+    data = getattr(rollout, field)
+    if field.startswith("marker"):
+        return data[:, simulator.marker_names.index(obs.target)]
+    if field.startswith("body"):
         return data[:, simulator.body_names.index(obs.target)]
     return data[:, simulator.joint_names.index(obs.target)][:, None]
 

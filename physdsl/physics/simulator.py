@@ -20,6 +20,7 @@ import numpy as np
 from ..scene import Scene
 from . import central
 from .forward import FORWARD_MODE_MAX, forward_mode
+from .markers import marker_tracks
 from .integrate import State, kinematics, step
 from .model import Model, build_model
 from .params import evaluate_params
@@ -36,6 +37,8 @@ class Rollout(NamedTuple):
     body_angvel: jnp.ndarray  # (T, B, 3) world angular velocity
     joint_pos: jnp.ndarray  # (T, J) hinge angle / slider displacement, 0 for other kinds
     joint_vel: jnp.ndarray  # (T, J)
+    marker_pos: jnp.ndarray | None = None  # (T, M, 3) markers' world positions
+    marker_vel: jnp.ndarray | None = None  # (T, M, 3) markers' world velocities
     contact_force: jnp.ndarray  # (T, C) normal force per candidate contact (0 when apart)
 
 
@@ -64,6 +67,7 @@ class Simulator:
         self.scene = scene
         self.model = model
         self.body_names = model.body_names
+        self.marker_names = tuple(m.name for m in scene.markers)
         self.joint_names = model.joint_names
         n = model.nsteps
         self.times = np.arange(n + 1) * model.dt
@@ -154,7 +158,10 @@ class Simulator:
         obs = jax.vmap(lambda q, v: observe(model, prm, q, v))(q, v)
         if central.decoupled(model):  # the same values, read off the translation alone
             obs = (pos, obs[1], lin) + obs[3:]
-        return Rollout(t, q, v, *obs, cf)
+        if not self.scene.markers:
+            return Rollout(t, q, v, *obs, cf)
+        return Rollout(t, q, v, *obs, cf, *marker_tracks(self.scene, self.body_names, values,
+                                                        *obs[:4]))
 
     def simulate(self, values, fields: tuple[str, ...] | None = None) -> Rollout:
         """Roll the scene out from t = 0 to the last recorded time for the unknowns' ``values``.

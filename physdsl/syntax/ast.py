@@ -236,8 +236,39 @@ class ObserveItem:
     span: Span | None = None
 
 
+@dataclass(frozen=True)
+class MarkerItem:
+    """``marker NAME on BODY { position: .. }``: a massless point fixed in a body's frame."""
+
+    name: str
+    body: str
+    block: Block
+    span: Span | None = None
+
+
+@dataclass(frozen=True)
+class AliasItem:
+    """``alias NAME = OTHER``: NAME stands for OTHER (``alias link0 = world`` for a loop's first parent)."""
+
+    name: str
+    target: str
+    span: Span | None = None
+
+
+@dataclass(frozen=True)
+class ForLoop:
+    """``for VAR in START..STOP { items }`` (inclusive); names like ``link{i - 1}`` inside are
+    templates, expanded at resolve time (``syntax/loops.py``)."""
+
+    var: str
+    start: int
+    stop: int
+    items: tuple["Item", ...]
+    span: Span | None = None
+
+
 Item = Union[Param, WorldItem, BodyItem, JointItem, ContactItem, EffectItem, ControlItem,
-             CameraItem, LightItem, ObserveItem]
+             CameraItem, LightItem, ObserveItem, MarkerItem, AliasItem, ForLoop]
 
 
 @dataclass(frozen=True)

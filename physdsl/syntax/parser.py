@@ -109,6 +109,16 @@ class _ToAst(Transformer):
         return ast.ObserveItem(str(ch[0]), str(ch[1]), unquote(ch[2]), ch[3], ch[4], ch[5], ch[6],
                                self._s(meta))
 
+    def marker(self, meta, ch):
+        return ast.MarkerItem(str(ch[0]), str(ch[1]), ch[2], self._s(meta))
+
+    def alias(self, meta, ch):
+        return ast.AliasItem(str(ch[0]), str(ch[1]), self._s(meta))
+
+    def loop(self, meta, ch):
+        start, stop = (int(x) for x in str(ch[1]).split(".."))
+        return ast.ForLoop(str(ch[0]), start, stop, tuple(ch[2:]), self._s(meta))
+
     def where(self, meta, ch):
         value = unquote(ch[1]) if ch[1].type == "STRING" else str(ch[1])
         return (str(ch[0]), value)
@@ -277,6 +287,9 @@ def parse_field(text: str, filename: str = "<edit>") -> ast.Field:
 _WORDS = {
     "KEY": "a field name followed by ':'",
     "NAME": "a name",
+    "TNAME": "a name",
+    "TKEY": "a field name followed by ':'",
+    "RANGE": "a range of whole numbers like 1..6",
     "UNIT": "a unit",
     "NUMBER": "a number",
     "STRING": "a string in double quotes",
@@ -287,7 +300,8 @@ _WORDS = {
 _VALUE_START = {"NUMBER", "NAME", "LPAR", "MINUS", "PLUS", "STRING"}
 _VALUE_WORDS = "a value (number, vector, name or '~ dist(...)')"
 _ITEM_WORDS = {"scene", "world", "param", "body", "ground", "joint", "contact", "effect",
-               "control", "camera", "light", "observe", "import", "effect_type"}
+               "control", "camera", "light", "observe", "import", "effect_type", "marker",
+               "for", "alias"}
 
 
 def _term_words(name: str) -> str:

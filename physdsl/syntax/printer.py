@@ -1,7 +1,8 @@
 """Canonical .phys text from the AST, keeping comments and single blank lines.
 
 Rules: two-space indent; one item or field per line; a block with at most two plain fields
-and no comments inside is written on one line (``{ noise: 2 mm }``); operators get spaces
+and no comments inside is written on one line (``{ noise: 2 mm }``), and so is a loop of one
+such item (up to 120 columns); operators get spaces
 except ``^``; numbers and units are printed as written. Comments stay where they were:
 whole-line comments before the next node, end-of-line comments after their line. A blank
 line in the source before a node (or a comment) is kept as one blank line.
@@ -15,6 +16,7 @@ from . import ast
 
 INDENT = "  "
 MAX_INLINE = 100
+LOOP_INLINE = 120  # a loop of one one-line item (``for i in 1..6 { observe .. }``) stays whole
 _NAME_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 
 
@@ -251,12 +253,30 @@ class _Printer:
             if it.times is not None:
                 head += f" times {_q(it.times)}"
             self.block_item(head, it.block, it, indent)
+        elif isinstance(it, ast.MarkerItem):
+            self.block_item(f"marker {it.name} on {it.body}", it.block, it, indent)
+        elif isinstance(it, ast.AliasItem):
+            self.leaf(f"alias {it.name} = {it.target}", it, indent)
+        elif isinstance(it, ast.ForLoop):
+            self.loop(it, indent)
         elif isinstance(it, ast.SceneDecl):
             self.container(f"scene {it.name}", it.items, it, indent)
         elif isinstance(it, ast.EffectType):
             self.effect_type(it, indent)
         else:
             raise TypeError(f"cannot print {it!r}")
+
+    def loop(self, it: ast.ForLoop, indent: str):
+        """A loop of one short item and no comments on one line, else as a container."""
+        header = f"for {it.var} in {it.start}..{it.stop}"
+        if len(it.items) == 1 and not self.has_comments_in(it):
+            one = _Printer(ast.Module(()), None)
+            one.item(it.items[0], "")
+            text = f"{header} {{ {one.out[0]} }}" if len(one.out) == 1 else ""
+            if text and len(indent + text) <= LOOP_INLINE:
+                self.leaf(text, it, indent)
+                return
+        self.container(header, it.items, it, indent)
 
     def container(self, header: str, items, node, indent: str):
         start = _start(node)

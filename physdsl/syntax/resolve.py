@@ -20,8 +20,11 @@ from ..errors import (DataError, PhysError, PhysErrors, PhysNameError, PhysStruc
 from ..scene import (DH, Body, Camera, EffectDecl, EffectParam, EffectUse, Joint, Light, Material,
                      Noise, Prior, Scene, Shape, Unknown, World)
 from . import ast, dists
-from .data import first_row, read_control, read_image_times, read_observation
+from .data import read_control, read_image_times, read_observation
 from .library import load_library
+from .loops import annotate, expand, place
+from .mapping import check_label, clash_hint, unknown_target
+from .markers import MARKER_QUANTITIES, build_marker
 from .units import (ANGLE, DIMLESS, LENGTH, MASS, TIME, Dim, UnitError, known_units, lookup,
                     parse_unit)
 
@@ -63,6 +66,7 @@ BODY_FIELDS = {
     "color": spec(DIMLESS, (3,)),
 }
 BODY_FLAGS = {"fixed", "collide"}
+MARKER_FIELDS = {"position": spec(LENGTH, (3,)), "color": spec(DIMLESS, (3,))}
 GROUND_FIELDS = {"normal": spec(DIMLESS, (3,)), "point": spec(LENGTH, (3,)),
                  "color": spec(DIMLESS, (3,))}
 MATERIAL_FIELDS = {"ambient": spec(DIMLESS), "diffuse": spec(DIMLESS)}
@@ -608,6 +612,7 @@ class Resolver:
         # library params
         for name, (p, text) in self.lib.params.items():
             self.register(name, p.value, None)
+        scene = expand(scene, self.errors)  # loops unrolled, aliases applied (syntax/loops.py)
         self.declare(scene)
         built = self.build(scene)
         self._raise()
@@ -654,14 +659,15 @@ class Resolver:
         self.bodies: list[ast.BodyItem] = []
         self.joints: list[ast.JointItem] = []
         self.cameras: list[ast.CameraItem] = []
+        self.markers: list[ast.MarkerItem] = []
         seen: dict[str, Span | None] = {}
 
         def unique(name, span, kind):
             if name in seen or name == "world":
-                where = f" (first at line {seen[name].line})" if seen.get(name) else ""
+                where = f" (first at {place(seen[name])})" if seen.get(name) else ""
                 self.errors.append(self.err(PhysNameError, f"the name '{name}' is used twice{where}"
                                             if name != "world" else "'world' is a reserved name",
-                                            span, f"give this {kind} another name"))
+                                            span, clash_hint(name, kind)))
                 return False
             seen[name] = span
             return True
@@ -680,6 +686,11 @@ class Resolver:
                     self.items_by_name[item.name] = "joint"
                     self.joints.append(item)
                     self.declare_joint(item)
+            elif isinstance(item, ast.MarkerItem):
+                if unique(item.name, item.span, "marker"):
+                    self.items_by_name[item.name] = "marker"
+                    self.markers.append(item)
+                    self.declare_fields(item.name, item.block, MARKER_FIELDS, "marker")
             elif isinstance(item, ast.CameraItem):
                 if unique(item.name, item.span, "camera"):
                     self.items_by_name[item.name] = "camera"
@@ -825,6 +836,8 @@ class Resolver:
         joints = [j for j in (self.collect(self.build_joint, it) for it in self.joints) if j]
         self.collect(self.check_tree, joints)
         self.joint_index = {j.name: j for j in joints}
+        markers = [m for m in (self.collect(build_marker, self, it) for it in self.markers) if m]
+        self.marker_index = {m.name: m for m in markers}
         cameras = [c for c in (self.collect(self.build_camera, it) for it in self.cameras) if c]
         lights = [i for i in scene.items if isinstance(i, ast.LightItem)]
         light = self.collect(self.build_light, lights[0]) if lights else None
@@ -880,7 +893,7 @@ class Resolver:
                                     u.discrete))
         return Scene(scene.name, world, tuple(bodies), tuple(joints), tuple(effects),
                      tuple(observations), tuple(cameras), tuple(unknowns), tuple(pairs), light,
-                     dict(self.effect_library), self.path, self.source)
+                     dict(self.effect_library), self.path, self.source, tuple(markers))
 
     def build_world(self, scene):
         items = [i for i in scene.items if isinstance(i, ast.WorldItem)]
@@ -1229,14 +1242,16 @@ class Resolver:
         q, t = item.quantity, item.target
         name = f"{t}.{q}"
         if q in BODY_QUANTITIES:
-            if t not in self.body_index:
-                raise self.err(PhysNameError, f"'{q}' is observed on bodies; unknown body '{t}'"
-                               f"{close(t, self.body_index)}", item.span)
+            if t in self.marker_index and q in MARKER_QUANTITIES:
+                pass
+            elif t not in self.body_index:
+                markers = " and markers" if q in MARKER_QUANTITIES else ""
+                names = list(self.body_index) + (list(self.marker_index) if markers else [])
+                raise unknown_target(self, item, "body", names, f"bodies{markers}")
             cols, qdim = BODY_QUANTITIES[q]
         elif q in JOINT_QUANTITIES:
             if t not in self.joint_index:
-                raise self.err(PhysNameError, f"'{q}' is observed on joints; unknown joint '{t}'"
-                               f"{close(t, self.joint_index)}", item.span)
+                raise unknown_target(self, item, "joint", self.joint_index, "joints")
             cols = JOINT_QUANTITIES[q]
             slider = self.joint_index[t].kind == "slider"
             qdim = (LENGTH if slider else ANGLE) if q == "angle" else (VEL if slider else ANGVEL)
@@ -1290,14 +1305,7 @@ class Resolver:
         if item.rate is not None or item.times is not None:
             raise self.err(PhysStructureError, "'at' and 'times' are for image observations; "
                            "a CSV file has its own column t", item.span)
-        if item.where is not None and item.where[0] in ("body", "joint"):
-            names = self.body_index if item.where[0] == "body" else self.joint_index
-            row = first_row(file, *item.where)
-            if item.where[1] not in names and row is not None:
-                raise DataError(f"'{item.where[1]}' is not a {item.where[0]} of the scene"
-                                f"{close(item.where[1], names)}", file, row=row,
-                                column=item.where[0], span=item.span,
-                                hint=f"observe the {item.where[0]} the scene calls '{t}'?")
+        check_label(self, item, file, self.items_by_name)  # the label may differ from t
         times, values, mask = read_observation(file, cols, item.where, item.span)
         return Observation_(name, t, q, file, times, values, mask, tuple(cols), noise, (), item.span)
 
@@ -1332,4 +1340,7 @@ def _fmt(arr: np.ndarray) -> str:
 
 def resolve(module: ast.Module, source: str, base_dir: Path, path: Path | None = None) -> Scene:
     """The checked Scene of a parsed module (``base_dir``: where data and imports are found)."""
-    return Resolver(module, source, Path(base_dir), path).run()
+    try:
+        return Resolver(module, source, Path(base_dir), path).run()
+    except PhysError as ex:  # errors inside loops name their iteration
+        raise annotate(ex) from None
