@@ -14,6 +14,7 @@ from conftest import EXAMPLES, HIDDEN
 
 import ball_chain
 import cart_pole
+import chain_hit
 import dh_arm
 import double_pendulum
 from mjgen import read_long, rollout
@@ -63,6 +64,12 @@ GENERATED = {
                            {"cart_slider": "sigma_slider_m", "pole_hinge": "sigma_angle_rad"}, None,
                            ("rail_friction_N", 0.0)),
     "ball_chain": (EXAMPLES / "ball_chain", _ball_chain, {}, "sigma_position_m", ("link_mass_kg", 0.11)),
+    "chain_hit": (EXAMPLES / "chain_hit", chain_hit.simulate,
+                  {h: "sigma_angle_rad" for h in chain_hit.HINGES}, "sigma_position_m",
+                  ("link_mass_kg", 0.07)),
+    "chain_hit_damped": (EXAMPLES / "chain_hit" / "damped", chain_hit.simulate,
+                         {h: "sigma_angle_rad" for h in chain_hit.HINGES}, "sigma_position_m",
+                         ("hinge_damping_N_m_s_per_rad", 0.0)),
     "dh_arm": (EXAMPLES / "dh_arm", _dh_arm, {j: "sigma_angle_rad" for j in dh_arm.JOINTS}, "sigma_position_m",
                ("payload_mass_kg", 0.33)),
 }
