@@ -20,18 +20,23 @@ def register(app: typer.Typer) -> None:
         seed: int = typer.Option(0, "--seed"),
         confirm: int = typer.Option(2, "--confirm", min=1,
                                     help="Refit the best N candidates per round to confirm one."),
+        revise: list[str] = typer.Option([], "--revise", help="An effect of the scene (EFFECT@TARGET) the "
+                                          "loop may swap for another law or drop, like those it adds."),
         force: bool = typer.Option(False, "--force", help="Overwrite a non-empty output folder."),
     ) -> None:
-        """The diagnosis loop: stops when residuals reach the noise or nothing in the library helps."""
+        """The diagnosis loop: adds, swaps and drops effects until none improves the evidence."""
         from ..diagnose.refine import refine as run
         from ..infer import get_backend
 
         get_backend(backend)
         rounds = run(scene, out, max_rounds=max_rounds, backend=backend, chains=chains,
                      warmup=warmup, samples=samples, seed=seed, force=force,
-                     confirm_top=confirm, echo=typer.echo)
-        typer.echo("\nround  added                              RMS (noise units)   ELPD")
+                     confirm_top=confirm, revise=tuple(revise), echo=typer.echo)
+        typer.echo("\nround  action   effect                             RMS (noise units)   ELPD")
         for r in rounds:
             add = f"{r.added['effect']} on {r.added['target']}" if r.added else "-"
-            typer.echo(f"{r.index:>5}  {add:<34} {r.rms_sigma:>17.2f}  {r.elpd:>8.1f}")
+            if r.replaced:
+                add = (f"{r.replaced['effect']} -> {add}" if r.added
+                       else f"{r.replaced['effect']} on {r.replaced['target']}")
+            typer.echo(f"{r.index:>5}  {r.action or '-':<8} {add:<34} {r.rms_sigma:>17.2f}  {r.elpd:>8.1f}")
         typer.echo(f"wrote {out}/refine.json, refine.md, refine.png")

@@ -1,7 +1,10 @@
-"""The loop a user would otherwise run by hand: infer -> check -> diagnose -> add the best
-confirmed effect to a new scene file -> infer again, until the residuals reach the noise or
-nothing in the library helps. The user's file is never edited: round k lives in
-``OUT/round-k/scene.phys``; ``OUT/refine.json`` records every round's error."""
+"""The loop a user would otherwise run by hand: infer -> check -> re-examine what the loop added
+(swap a law, drop an effect) -> diagnose -> add the best confirmed effect to a new scene file ->
+infer again, until no addition, swap or drop improves the evidence. It stops when the residuals
+are consistent with the noise (the check's statistics, not an RMS threshold) or when nothing in
+the library explains what is left, and then says where and how the model still fails. The
+user's file is never edited: round k lives in ``OUT/round-k/scene.phys``; ``OUT/refine.json``
+records every round's error and action."""
 from __future__ import annotations
 
 import shutil
@@ -12,8 +15,6 @@ from .. import io
 from ..compile import Model
 from ..syntax import load
 
-CONSISTENT_RMS = 1.3  # residual RMS in noise units that counts as "explained"
-
 
 @dataclass
 class Round:
@@ -21,17 +22,23 @@ class Round:
     scene: Path
     rms_sigma: float
     elpd: float
-    added: dict | None
+    added: dict | None  # the effect this round's scene has beyond the previous one's
     verdict: str
+    action: str | None = None  # how this scene came from the previous: added | swapped | dropped
+    replaced: dict | None = None  # the effect a swap or a drop took out
+    log_evidence: float | None = None  # Laplace log marginal likelihood (None: n/a)
+    consistent: bool = False  # the check finds no systematic residual
 
 
 def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", chains: int = 2,
            warmup: int = 300, samples: int = 300, seed: int = 0, force: bool = False,
-           confirm_top: int = 2, echo=print) -> list[Round]:
-    """Fit, check, diagnose and extend the scene until it explains the data; returns the rounds."""
+           confirm_top: int = 2, revise=(), echo=print) -> list[Round]:
+    """Fit, check, re-examine, diagnose and extend the scene until no addition, swap or drop
+    improves the evidence; returns the rounds. ``revise``: effects of the user's scene
+    (``effect@target``) to re-examine like those the loop adds."""
     from .candidates import physics_candidates
-    from .rank import (combined_loo, diagnose, fit_with_fallback, loo_reliability,
-                       start_setting, with_effect)
+    from .rank import diagnose, fit_with_fallback, loo_reliability, start_setting, with_effect
+    from .stepwise import judge, parse, reexamine
     from .workflow import point_estimate
 
     out = io.prepare_outdir(outdir, force=force)
@@ -40,8 +47,10 @@ def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", cha
     current.parent.mkdir(parents=True, exist_ok=True)
     _copy_scene(scene_path, current)
     rounds: list[Round] = []
-    added = None
+    change: dict = {"action": None, "added": None, "replaced": None}
     start: dict = {}  # where the first chain of a round's fit starts (see below)
+    # effects the loop may swap or drop, each with the scene's effects when last examined
+    revisable = {parse(k).key: (parse(k), None) for k in revise}
     for k in range(max_rounds + 1):
         rdir = current.parent
         model = Model(load(current))
@@ -52,41 +61,87 @@ def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", cha
         if "fit_note" in idata.attrs:
             echo(f"round {k}: {idata.attrs['fit_note']}")
         report = model.check(idata, outdir=rdir / "check")
-        loo = combined_loo(idata)
-        elpd = float(loo.elpd_loo)
-        echo(f"round {k}: residual RMS {report.rms_sigma:.2f}σ, ELPD {elpd:.1f}")
-        caveat = loo_reliability(loo)
+        now = judge(model, idata, report)
+        z = "n/a" if now.log_z is None else f"{now.log_z:.1f}"
+        echo(f"round {k}: residual RMS {report.rms_sigma:.2f}σ, ELPD {now.elpd:.1f}, log Z {z}")
+        caveat = loo_reliability(now.loo)
         if caveat:
             echo(f"  note: {caveat}")
         for line in report.text().splitlines()[1:]:
             echo("  " + line)
-        if report.rms_sigma <= CONSISTENT_RMS or k == max_rounds:
-            verdict = ("residuals consistent with the noise" if report.rms_sigma <= CONSISTENT_RMS
-                       else "stopped: --max-rounds reached")
-            rounds.append(Round(k, current, float(report.rms_sigma), elpd, added, verdict))
+
+        def record(verdict: str) -> None:
+            rounds.append(Round(k, current, float(report.rms_sigma), now.elpd, change["added"],
+                                verdict, change["action"], change["replaced"], now.log_z,
+                                bool(report.consistent)))
+
+        effects = _effects(model.scene)
+        due = [c for c, seen in revisable.values() if seen != effects]
+        if due and k < max_rounds:
+            echo(f"round {k}: re-examining {', '.join(_name(c) for c in due)} given the effects now present")
+            act, _ = reexamine(now, due, echo)
+            for c in due:
+                if c.key in revisable:
+                    revisable[c.key] = (c, effects)
+            if act is not None:
+                what = (f"swapped {_name(act.removed)} for {_name(act.added)}" if act.added
+                        else f"dropped {_name(act.removed)}")
+                record(f"{what} ({act.comparison.text()})")
+                echo(f"round {k}: {what}")
+                revisable.pop(act.removed.key, None)
+                change = {"action": act.kind, "replaced": _ref(act.removed),
+                          "added": _ref(act.added) if act.added else None}
+                start = point_estimate(act.judged.model, act.judged.idata)
+                current = _write_round(out, k + 1, act.text, scene_path)
+                if act.added:  # examined just now, against the same other effects
+                    revisable[act.added.key] = (act.added, _effects(load(current)))
+                continue
+        if report.consistent or k == max_rounds:
+            record("residuals consistent with the noise (runs, autocorrelation, windows and trend "
+                   "tests at the noise level)" if report.consistent else "stopped: --max-rounds reached")
             break
         diag = diagnose(model, idata, confirm_top=max(confirm_top, 1), outdir=rdir / "diagnosis",
                         check_report=report, echo=echo)
         echo(f"round {k}: {diag.verdict}")
         echo(diag.table())
-        rounds.append(Round(k, current, float(report.rms_sigma), elpd, added, diag.verdict))
         if diag.winner is None:
+            record("stopped: no addition, swap or drop improves the evidence; " + diag.verdict)
             break
+        record(diag.verdict)
         w = diag.winner
-        added = {"effect": w.effect, "target": w.target}
+        change = {"action": "added", "added": {"effect": w.effect, "target": w.target}, "replaced": None}
         # the next round starts where the diagnosis's refit ended: this round's fit and the
         # added strength's fitted median (a start from the prior can settle in a poor basin of
         # a contact scene: billiards' second round ended at 7.85σ where the refit had 0.97σ)
-        start = {**point_estimate(model, idata), w.fitted["name"]: w.fitted["median"]}
-        nxt = out / f"round-{k + 1}" / "scene.phys"
+        start = {**point_estimate(model, idata),
+                 **w.fitted.get("values", {w.fitted["name"]: w.fitted["median"]})}
         cand = next(c for c in physics_candidates(model.scene) if c.key == f"{w.effect}@{w.target}")
-        text = with_effect(model.scene, cand)
-        io.write_text(nxt, text)
-        _copy_data(scene_path.parent, nxt.parent)
-        echo(f"round {k}: added `{w.snippet.strip()}` -> {nxt}")
-        current = nxt
+        current = _write_round(out, k + 1, with_effect(model.scene, cand), scene_path)
+        revisable[cand.key] = (cand, _effects(load(current)))  # chosen against these
+        echo(f"round {k}: added `{w.snippet.strip()}` -> {current}")
     _write_summary(out, rounds)
     return rounds
+
+
+def _write_round(out: Path, index: int, text: str, scene_path: Path) -> Path:
+    """Write round ``index``'s scene (and copies of the data beside it); its path."""
+    nxt = out / f"round-{index}" / "scene.phys"
+    io.write_text(nxt, text)
+    _copy_data(scene_path.parent, nxt.parent)
+    return nxt
+
+
+def _effects(scene) -> frozenset:
+    """The scene's effects as (effect, target) pairs: what an examination was made against."""
+    return frozenset((e.effect, tuple(e.target)) for e in scene.effects)
+
+
+def _ref(c) -> dict:
+    return {"effect": c.name, "target": ",".join(c.target)}
+
+
+def _name(c) -> str:
+    return f"{c.name} on {','.join(c.target)}"
 
 
 def _copy_scene(src: Path, dst: Path) -> None:
@@ -109,12 +164,18 @@ def _copy_data(src_dir: Path, dst_dir: Path, skip: str = "") -> None:
 
 def _write_summary(out: Path, rounds: list[Round]) -> None:
     data = {"rounds": [{"scene": str(r.scene), "rms_sigma": r.rms_sigma, "elpd": r.elpd,
-                        "added": r.added, "verdict": r.verdict} for r in rounds]}
+                        "added": r.added, "action": r.action, "replaced": r.replaced,
+                        "log_evidence": r.log_evidence, "consistent": r.consistent,
+                        "verdict": r.verdict} for r in rounds]}
     io.write_json(out / "refine.json", data)
-    lines = ["| round | scene | added | RMS (σ) | ELPD |", "|---|---|---|---|---|"]
+    lines = ["| round | scene | action | added | replaced | RMS (σ) | ELPD | log Z |",
+             "|---|---|---|---|---|---|---|---|"]
     for r in rounds:
         add = f"{r.added['effect']} on {r.added['target']}" if r.added else "—"
-        lines.append(f"| {r.index} | {r.scene} | {add} | {r.rms_sigma:.2f} | {r.elpd:.1f} |")
+        rep = f"{r.replaced['effect']} on {r.replaced['target']}" if r.replaced else "—"
+        z = "n/a" if r.log_evidence is None else f"{r.log_evidence:.1f}"
+        lines.append(f"| {r.index} | {r.scene} | {r.action or '—'} | {add} | {rep} | "
+                     f"{r.rms_sigma:.2f} | {r.elpd:.1f} | {z} |")
     io.write_text(out / "refine.md", "\n".join(lines) + "\n")
     _plot(out, rounds)
 

@@ -1,0 +1,172 @@
+"""Second thoughts of the refine loop: an effect the loop added is re-examined once others have
+joined it, given those now present. Swapped for another law at the same target when the
+evidence says so, dropped when its evidence has vanished.
+
+Alternatives come from the library, not from a list: laws that act on the same target with a
+one-sided scalar strength of the same sign and the same off value (on a body: linear and
+quadratic drag, buoyancy, Magnus; on a joint: viscous damping, Coulomb friction, torsion
+spring; on a contact pair: sliding friction and rolling resistance), and the same for a group
+or material-level target (``shoulder+elbow``, ``table,*``).
+
+Decisions (``swap_wins``, ``drop_wins``) read two numbers of the scenes' fits: ΔELPD
+(PSIS-LOO, with the tie margin of ``rank.tie_margin``: twice the standard error of the summed
+pointwise differences, at least 4) and the Laplace log evidence Δlog Z (``evidence.py``),
+which counts complexity. A swap needs ΔELPD beyond the margin with the evidence not against it,
+or, within the margin, strong evidence (Bayes factor > 10). A drop needs ΔELPD within the margin
+(the effect no longer predicts anything) with the evidence for the smaller scene. Where the
+evidence is n/a (a kink at the mode) ΔELPD alone decides.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..compile import Model
+from .candidates import Candidate, physics_candidates
+from .edits import load_text, with_effect, without_effect
+
+STRONG = math.log(10.0)  # Δlog Z that decides a swap on its own (Jeffreys: strong evidence)
+
+
+@dataclass
+class Judged:
+    """A scene's fit and what it earns: residual check, PSIS-LOO, Laplace log evidence."""
+
+    model: object
+    idata: object
+    report: object
+    loo: object
+    log_z: float | None
+
+    @property
+    def elpd(self) -> float:
+        return float(self.loo.elpd_loo)
+
+
+def judge(model, idata, report=None) -> Judged:
+    """Score a fitted scene (its check, its PSIS-LOO and its Laplace evidence)."""
+    from .evidence import laplace_log_evidence
+    from .rank import combined_loo
+    from .workflow import check_model
+
+    report = report or check_model(model, idata)
+    return Judged(model, idata, report, combined_loo(idata), laplace_log_evidence(model, idata))
+
+
+@dataclass
+class Comparison:
+    """A new scene against the current one: ΔELPD, its tie margin and Δlog Z (None: n/a)."""
+
+    d_elpd: float
+    margin: float
+    d_log_z: float | None
+
+    def text(self) -> str:
+        z = "n/a" if self.d_log_z is None else f"{self.d_log_z:+.1f}"
+        return f"ΔELPD {self.d_elpd:+.1f} (tie margin {self.margin:.1f}), Δlog Z {z}"
+
+
+def compare(new: Judged, old: Judged) -> Comparison:
+    from .rank import ELPD_TIE, _sum_se
+
+    diff = np.asarray(new.loo.loo_i) - np.asarray(old.loo.loo_i)
+    dz = None if new.log_z is None or old.log_z is None else new.log_z - old.log_z
+    return Comparison(float(diff.sum()), max(2.0 * _sum_se(diff), ELPD_TIE), dz)
+
+
+def swap_wins(c: Comparison) -> bool:
+    """Another law beats the current one: it predicts better beyond the tie margin and the
+    evidence does not disagree, or, predicting alike, the evidence is strong (> log 10)."""
+    if c.d_elpd > c.margin:
+        return c.d_log_z is None or c.d_log_z > 0
+    return c.d_elpd > -c.margin and c.d_log_z is not None and c.d_log_z > STRONG
+
+
+def drop_wins(c: Comparison) -> bool:
+    """The scene without an effect (``c``: without against with) predicts as well (within the
+    tie margin) and the evidence, which counts the effect's parameter, prefers it."""
+    return c.d_elpd > -c.margin and (c.d_log_z is None or c.d_log_z > 0)
+
+
+def alternatives(scene, cand: Candidate) -> list[Candidate]:
+    """Other library laws at ``cand``'s target, as candidates of the scene without ``cand``:
+    a one-sided scalar strength of the same sign and off value (see the module's docstring)."""
+    lib = scene.effect_library
+    mine = lib[cand.name].strength
+    bare = load_text(scene, without_effect(scene, cand))
+    out = []
+    for c in physics_candidates(bare):
+        s = lib[c.name].strength
+        if (c.kind == "effect" and c.target == cand.target and c.name != cand.name
+                and s.sign and s.sign == mine.sign and s.off == mine.off
+                and not s.shape and not mine.shape):
+            out.append(c)
+    return out
+
+
+@dataclass
+class Action:
+    """A swap (``removed`` → ``added``) or a drop (``added`` None) and the refit it rests on."""
+
+    kind: str  # "swapped" | "dropped"
+    removed: Candidate
+    added: Candidate | None
+    text: str  # the new scene's source
+    judged: Judged
+    comparison: Comparison
+    tried: list = field(default_factory=list)  # (description, Comparison or error) of each refit
+
+
+def reexamine(current: Judged, revisable: list[Candidate], echo=None) -> tuple[Action | None, list]:
+    """Refit each of ``revisable`` (effects in ``current``'s scene) dropped and swapped for each
+    alternative, given the rest of the scene; return the best winning action (by Δlog Z, then
+    ΔELPD) or None, and the lines describing every refit."""
+    from .rank import REFIT_FAILURES, quick_fit
+    from .workflow import point_estimate
+
+    echo = echo or (lambda line: None)
+    scene = current.model.scene
+    start = point_estimate(current.model, current.idata)
+    wins, lines = [], []
+    for cand in revisable:
+        bare_text = without_effect(scene, cand)
+        bare = load_text(scene, bare_text)
+        options = [(None, bare_text)] + [(alt, with_effect(bare, alt, bare_text))
+                                        for alt in alternatives(scene, cand)]
+        for alt, text in options:
+            what = (f"drop {_name(cand)}" if alt is None else f"swap {_name(cand)} → {_name(alt)}")
+            echo(f"  refit: {what}")
+            t0 = time.perf_counter()
+            try:
+                model = Model(load_text(scene, text))
+                begin = {k: v for k, v in start.items() if k in set(model.unknown_names)}
+                new = judge(model, quick_fit(model, start=begin))
+            except REFIT_FAILURES as err:
+                lines.append(f"{what}: refit failed ({getattr(err, 'message', None) or err})")
+                echo(f"    {lines[-1]}")
+                continue
+            c = compare(new, current)
+            ok = drop_wins(c) if alt is None else swap_wins(c)
+            lines.append(f"{what}: {c.text()}, RMS {new.report.rms_sigma:.2f}σ"
+                         f"{' — wins' if ok else ''} ({time.perf_counter() - t0:.0f} s)")
+            echo(f"    {lines[-1]}")
+            if ok:
+                wins.append(Action("dropped" if alt is None else "swapped", cand, alt, text, new, c))
+    if not wins:
+        return None, lines
+    best = max(wins, key=lambda a: (a.comparison.d_log_z if a.comparison.d_log_z is not None
+                                    else -math.inf, a.comparison.d_elpd))
+    return best, lines
+
+
+def _name(c: Candidate) -> str:
+    return f"{c.name} on {','.join(c.target)}"
+
+
+def parse(key: str) -> Candidate:
+    """``effect@target`` (as in refine.json and diagnosis.json) as a Candidate."""
+    name, _, target = key.partition("@")
+    return Candidate("effect", name, tuple(target.split(",")))

@@ -1,0 +1,165 @@
+"""Stepwise selection: group candidates, alternatives from the library, and the refine loop's
+second thoughts (a wrong law swapped, a redundant effect dropped) on short physdsl-simulated
+throws."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from physdsl.compile import Model
+from physdsl.diagnose.candidates import Candidate, physics_candidates
+from physdsl.diagnose.edits import load_text, unknown_keys, with_effect, without_effect
+from physdsl.diagnose.refine import refine
+from physdsl.diagnose.stepwise import Comparison, alternatives, drop_wins, swap_wins
+
+from .conftest import PENDULUM, load_scene, write_csv
+
+CHAIN = """\
+scene chain {
+  world {
+    timestep: 5 ms
+    duration: 1 s
+  }
+  body l1 { shape: capsule(radius: 1 cm, length: 20 cm)  mass: 100 g  position: (0, 0, 1.4) m }
+  body l2 { shape: capsule(radius: 1 cm, length: 20 cm)  mass: 100 g  position: (0, 0, 1.15) m }
+  body l3 { shape: capsule(radius: 1 cm, length: 20 cm)  mass: 100 g  position: (0, 0, 0.9) m }
+  body l4 { shape: capsule(radius: 1 cm, length: 20 cm)  mass: 100 g  position: (0, 0, 0.65) m }
+  joint j1: hinge(world -> l1) { axis: (0, -1, 0)  anchor: (0, 0, 1.525) m  initial ~ normal(40 deg, 5 deg) }
+  joint j2: hinge(l1 -> l2) { axis: (0, -1, 0)  anchor: (0, 0, 1.275) m  initial: 0 deg }
+  joint j3: hinge(l2 -> l3) { axis: (0, -1, 0)  anchor: (0, 0, 1.025) m  initial: 0 deg }
+  joint j4: hinge(l3 -> l4) { axis: (0, -1, 0)  anchor: (0, 0, 0.775) m  initial: 0 deg }
+  observe j1.angle from "joints.csv" where joint == "j1" { noise: 3 mrad }
+}
+"""
+
+
+def test_a_four_link_chain_has_group_candidates_shared_and_per_joint(tmp_path):
+    write_csv(tmp_path / "joints.csv", np.linspace(0, 1, 11), np.zeros((11, 1)), "j1")
+    scene = load_scene(tmp_path, CHAIN)
+    keys = {c.key for c in physics_candidates(scene)}
+    for law in ("joint_damping", "joint_friction", "joint_spring"):
+        assert f"{law}@j1+j2+j3+j4" in keys and f"{law}@j1&j2&j3&j4" in keys
+        assert {f"{law}@j{i}" for i in range(1, 5)} <= keys
+    shared, each = (Candidate("effect", "joint_damping", (t,)) for t in ("j1+j2+j3+j4", "j1&j2&j3&j4"))
+    one = load_text(scene, with_effect(scene, shared))
+    assert unknown_keys(scene, shared) == ["j1_j2_j3_j4_joint_damping"]
+    assert {(e.effect, tuple(e.target)) for e in one.effects if e.effect != "gravity"} == \
+        {("joint_damping", (f"j{i}",)) for i in range(1, 5)}
+    assert {u.name for u in one.unknowns} == {"j1.initial", "j1_j2_j3_j4_joint_damping"}
+    four = load_text(scene, with_effect(scene, each))
+    assert {u.name for u in four.unknowns} - {"j1.initial"} == set(unknown_keys(scene, each))
+    assert len(unknown_keys(scene, each)) == 4
+    # taking a group out restores the scene: its effects and its shared param go
+    for cand, grown in ((shared, one), (each, four)):
+        back = load_text(scene, without_effect(grown, cand))
+        assert {e.effect for e in back.effects} == {"gravity"} and {u.name for u in back.unknowns} == {"j1.initial"}
+    # a group already partly present is no candidate; a chain of one joint has no group
+    part = load_text(scene, with_effect(scene, Candidate("effect", "joint_damping", ("j2",))))
+    assert not any(c.joints and c.name == "joint_damping" for c in physics_candidates(part))
+
+
+def test_alternatives_come_from_the_library_same_target_and_sign(tmp_path):
+    write_csv(tmp_path / "joints.csv", np.linspace(0, 1, 11), np.zeros((11, 1)), "hinge")
+    scene = load_scene(tmp_path, PENDULUM)
+    damped = load_text(scene, with_effect(scene, Candidate("effect", "joint_damping", ("hinge",))))
+    alts = {c.key for c in alternatives(damped, Candidate("effect", "joint_damping", ("hinge",)))}
+    assert alts == {"joint_friction@hinge", "joint_spring@hinge"}
+    drag = load_text(scene, with_effect(scene, Candidate("effect", "linear_drag", ("bob",))))
+    alts = {c.key for c in alternatives(drag, Candidate("effect", "linear_drag", ("bob",)))}
+    assert "quadratic_drag@bob" in alts and "wind@bob" not in alts  # wind: a vector, no sign
+    assert all(k.endswith("@bob") for k in alts)
+
+
+def test_swap_and_drop_rules():
+    # better predictions beyond the margin, evidence agreeing or n/a: swap; evidence against: no
+    assert swap_wins(Comparison(50.0, 8.0, 40.0)) and swap_wins(Comparison(50.0, 8.0, None))
+    assert not swap_wins(Comparison(50.0, 8.0, -1.0))
+    # a tie in ELPD: only strong evidence (> log 10) swaps
+    assert swap_wins(Comparison(2.0, 8.0, 3.0)) and not swap_wins(Comparison(2.0, 8.0, 1.0))
+    assert not swap_wins(Comparison(2.0, 8.0, None))
+    # drop: predictions within the margin and the evidence for the smaller scene
+    assert drop_wins(Comparison(-3.0, 8.0, 2.5)) and not drop_wins(Comparison(-3.0, 8.0, -0.5))
+    assert not drop_wins(Comparison(-30.0, 8.0, 5.0))
+
+
+# a steep throw: 20 m/s up, 2 m/s at the top, hidden quadratic drag; linear drag cannot bend the
+# trajectory alike at both speeds
+STEEP = """\
+scene steep {
+  world {
+    timestep: 20 ms
+    duration: 3 s
+    integrator: rk4
+  }
+  body ball {
+    shape: sphere(radius: 5 cm)
+    mass: 200 g
+    position: (0, 0, 1) m
+    velocity ~ normal((2, 0, 20) m/s, 2 m/s)
+    angular_velocity: (0, 0, 0) rad/s
+  }
+  observe ball.position from "data.csv" where body == "ball" { noise: 5 mm }
+}
+"""
+
+
+@pytest.fixture(scope="module")
+def steep(tmp_path_factory):
+    """Data of the steep throw with quadratic drag c = 1e-3 kg/m, and the naive scene."""
+    folder = tmp_path_factory.mktemp("steep")
+    times = np.linspace(0.0, 3.0, 61)
+    write_csv(folder / "data.csv", times, np.zeros((61, 3)), "ball")
+    naive = load_scene(folder, STEEP, "naive.phys")
+    quad = Candidate("effect", "quadratic_drag", ("ball",))
+    truth = Model(load_text(naive, with_effect(naive, quad)))
+    pred = np.asarray(truth.predict({"ball.velocity": np.array([2.0, 0.0, 20.0]),
+                                     "quadratic_drag@ball.coefficient": np.asarray(1e-3)})["ball.position"])
+    speed = np.linalg.norm(np.gradient(pred, times, axis=0), axis=1)
+    assert speed.max() > 18 and speed.min() < 3  # the speeds span 2-20 m/s
+    write_csv(folder / "data.csv", times, pred + np.random.default_rng(11).normal(0, 0.005, pred.shape), "ball")
+    return folder, load_scene(folder, STEEP, "naive.phys")
+
+
+def _start(folder, naive, *effects) -> str:
+    text = naive.source
+    for name in effects:
+        text = with_effect(naive, Candidate("effect", name, ("ball",)), text)
+    (folder / "start.phys").write_text(text)
+    return folder / "start.phys"
+
+
+@pytest.mark.slow  # six fits of a 3 s throw: 73 CPU s
+def test_the_loop_swaps_a_wrong_drag_law(steep, tmp_path):
+    folder, naive = steep
+    scene = _start(folder, naive, "linear_drag")
+    rounds = refine(scene, tmp_path / "out", max_rounds=1, warmup=100, samples=64,
+                    revise=("linear_drag@ball",), echo=lambda *_: None)
+    r0, r1 = rounds
+    assert r0.action is None and r0.added is None
+    assert r1.action == "swapped", [r.verdict for r in rounds]
+    assert r1.added == {"effect": "quadratic_drag", "target": "ball"}
+    assert r1.replaced == {"effect": "linear_drag", "target": "ball"}
+    assert r1.rms_sigma < r0.rms_sigma and r1.elpd > r0.elpd
+    assert r1.log_evidence is not None and r0.log_evidence is not None and r1.log_evidence > r0.log_evidence
+    data = json.loads((tmp_path / "out" / "refine.json").read_text())
+    assert [r["action"] for r in data["rounds"]] == [None, "swapped"]
+    assert data["rounds"][1]["replaced"] == r1.replaced and data["rounds"][1]["added"] == r1.added
+    assert {"scene", "rms_sigma", "elpd", "added"} <= set(data["rounds"][0])
+
+
+@pytest.mark.slow
+def test_the_loop_drops_an_effect_whose_evidence_vanished(steep, tmp_path):
+    folder, naive = steep
+    scene = _start(folder, naive, "quadratic_drag", "linear_drag")
+    rounds = refine(scene, tmp_path / "out", max_rounds=1, warmup=100, samples=64,
+                    revise=("linear_drag@ball",), echo=lambda *_: None)
+    r1 = rounds[1]
+    assert r1.action == "dropped", [r.verdict for r in rounds]
+    assert r1.replaced == {"effect": "linear_drag", "target": "ball"} and r1.added is None
+    from physdsl.syntax import load
+
+    left = load(r1.scene)
+    assert {(e.effect, tuple(e.target)) for e in left.effects} == {("quadratic_drag", ("ball",))}
+    assert r1.log_evidence > rounds[0].log_evidence
