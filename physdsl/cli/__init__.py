@@ -79,9 +79,10 @@ def main(argv: list[str] | None = None) -> int:
         return int(ex.code or 0) if not isinstance(ex.code, str) else 2
     except PhysError as err:
         return report_error(err)
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as ex:  # a second Ctrl-C, or infer's Interrupted (a signal)
+        note = getattr(ex, "note", "")
+        print("interrupted" + (f": {note}" if note else ""), file=sys.stderr)
+        return 128 + getattr(ex, "signum", 2)  # the shell's code of a signal: 130, 143
     except Exception as ex:  # noqa: BLE001 - last line of defence, reported as a bug
         print(f"internal error: {type(ex).__name__}: {ex}\n"
               "This is a bug in physdsl; please report it with the scene file.", file=sys.stderr)

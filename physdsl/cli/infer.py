@@ -24,21 +24,69 @@ def register(app: typer.Typer) -> None:
                                         help="HMC/NUTS metric: dense (default) or diagonal."),
         force: bool = typer.Option(False, "--force", help="Overwrite a non-empty output folder."),
         resume: bool = typer.Option(False, "--resume", help="Continue an interrupted run in OUT."),
+        init: str = typer.Option(None, "--init",
+                                 help="Start values, e.g. 'h0=1.1 m, ball.velocity=(3, 0, 2.5) "
+                                      "m/s' (the first start; units as in the scene)."),
+        fallback: str = typer.Option(None, "--fallback",
+                                     help="With --backend map: where the Laplace step fails, "
+                                          "sample from the mode with this sampler (rmh)."),
     ) -> None:
-        """Fit a scene to its measurements; write posterior.nc, summary.csv and run.json."""
+        """Fit a scene to its measurements; write posterior.nc, summary.csv and run.json.
+
+        Ctrl-C or SIGTERM stops within seconds (a second Ctrl-C at once), leaving a checkpoint
+        in OUT that --resume continues exactly; the exit code is then 130 (SIGINT) or 143
+        (SIGTERM)."""
         from ..compile import Model
+        from ..errors import UsageError
         from ..infer import get_backend
-        from ..infer.output import format_table, summary_rows, warnings_in_words
+        from ..infer.backends.map import LaplaceError
+        from ..infer.init import start_values
+        from ..infer.interrupt import Interrupted
         from ..syntax import load
 
         get_backend(backend)  # fail fast on an unknown name, before compiling
+        if fallback is not None and (fallback != "rmh" or backend != "map"):
+            raise UsageError(f"--fallback {fallback} with --backend {backend}",
+                             hint="--fallback rmh goes with --backend map: random-walk "
+                                  "Metropolis from the mode where the Laplace step fails")
         model = Model(load(scene))
-        idata = model.infer(backend=backend, chains=chains, warmup=warmup, samples=samples,
-                            seed=seed, target_accept=target_accept, dense_mass=dense_mass,
-                            outdir=out, force=force, resume=resume)
-        rows = summary_rows(model, idata)
-        typer.echo(format_table(rows))
-        for w in warnings_in_words(rows, idata, backend):
-            typer.echo(f"warning: {w}", err=True)
+        start = start_values(init, model.unknowns) if init else None  # errors before compiling
+        run = dict(backend=backend, chains=chains, warmup=warmup, samples=samples, seed=seed,
+                   target_accept=target_accept, dense_mass=dense_mass, outdir=out, force=force,
+                   resume=resume, **({"init": start} if start else {}))
+        try:
+            if fallback:  # refine's fallback; its starts read the start values as a setting
+                from ..diagnose.rank import fit_with_fallback, start_setting
+
+                run.pop("init", None)
+                run["start"] = start_setting(start or {})
+                idata = fit_with_fallback(model, **run)
+            else:
+                idata = model.infer(**run)
+        except LaplaceError as err:
+            if getattr(err, "idata", None) is not None:
+                _report(model, err.idata, backend)
+            raise
+        except Interrupted as ex:  # (click would turn it into 'Aborted!' and exit 1)
+            typer.echo("interrupted" + (f": {ex.note}" if ex.note else ""), err=True)
+            raise typer.Exit(128 + ex.signum)  # the shell's code of a signal: 130, 143
+        _report(model, idata, backend)
         typer.echo(f"wrote {out}/posterior.nc, summary.csv, run.json")
         sys.stdout.flush()
+
+
+def _report(model, idata, backend: str) -> None:
+    """The summary table and the fit's quality on stdout; warnings on stderr."""
+    import json
+
+    from ..infer.output import fit_quality_lines, format_table, summary_rows, warnings_in_words
+
+    rows = summary_rows(model, idata)
+    typer.echo(format_table(rows))
+    if "fit_note" in idata.attrs:
+        typer.echo(f"note: {idata.attrs['fit_note']}", err=True)
+    quality = json.loads(idata.attrs["fit_quality"]) if "fit_quality" in idata.attrs else None
+    if quality:
+        typer.echo("\n".join(fit_quality_lines(quality)))
+    for w in warnings_in_words(rows, idata, backend) + (quality or {}).get("warnings", []):
+        typer.echo(f"warning: {w}", err=True)

@@ -325,6 +325,8 @@ def fit_with_fallback(model, backend: str, **settings):
         why = f"Laplace approximation failed ({err.message})"
     # each transition costs a rollout (on contact scenes the bulk of a fit): a short run
     settings = {**settings, "warmup": min(settings.get("warmup", 200), 200)}
+    if settings.get("outdir") is not None:  # the sample replaces what the MAP attempt wrote
+        settings.update(force=True, resume=False)
     idata = model.infer(backend="rmh", positions=modes, **settings)
     idata.attrs["fit_note"] = f"{why}; posterior sampled by random-walk Metropolis from the modes"
     return idata

@@ -76,8 +76,12 @@ class Backend:
         ``on_block(m)``: called after each block of ``m`` warmup transitions (progress)."""
         raise NotImplementedError
 
-    def sample(self, problem: Problem, states, params, key, n: int, settings: Settings):
-        """Advance chains by ``n``; return (states, draws (chains, n, dim), stats {name: (chains, n)})."""
+    def sample(self, problem: Problem, states, params, key, n: int, settings: Settings,
+               start: int = 0):
+        """Advance chains by ``n``: the draws numbered ``start`` to ``start + n - 1`` of the run,
+        whose random numbers come from ``key`` and their number alone (so any cut of the
+        draws into calls gives the same draws); return (states, draws (chains, n, dim),
+        stats {name: (chains, n)})."""
         raise NotImplementedError
 
 

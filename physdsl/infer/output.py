@@ -16,23 +16,22 @@ from ..compile import OBS_PREFIX, PRED_PREFIX
 from .base import cached
 
 
-def build_inference_data(model, problem, flat: np.ndarray, stats: dict, settings) -> az.InferenceData:
+PASS_CHUNK = 64  # draws per call of the posterior pass: one compile for any number of
+# draws, memory bounded (a rollout's states per draw), and a progress bar that moves
+
+
+def build_inference_data(model, problem, flat: np.ndarray, stats: dict, settings,
+                         on_chunk=None) -> az.InferenceData:
     """InferenceData with posterior (unknowns), predictive, observed data and pointwise log-lik.
 
     One jitted pass per draw: numpyro's postprocessing runs the program once (constrained
     values and the ``pred:`` deterministic sites), and the log-likelihood is read off those
-    predictions, so the physics is rolled out once per draw.
+    predictions, so the physics is rolled out once per draw, ``PASS_CHUNK`` draws a call
+    (vmapped; ``on_chunk(m)`` after each call, a progress bar).
     """
     chains, samples, _ = flat.shape
-
-    def one(x, data):
-        c = problem.to_constrained(x, data)
-        values = {k: c[k] for k in model.unknown_names}
-        preds = {o.obs.name: c[PRED_PREFIX + o.obs.name] for o in model.observed}
-        return c, model.pointwise_log_likelihood(values, preds, data)
-
-    fn = cached(problem, "posterior-pass", lambda: jax.jit(jax.vmap(one, in_axes=(0, None))))
-    constrained, loglik = fn(jnp.asarray(flat.reshape(chains * samples, -1)), problem.data)
+    constrained, loglik = posterior_pass(model, problem, flat.reshape(chains * samples, -1),
+                                         on_chunk)
     unknowns = set(model.unknown_names)
     shaped = lambda v: np.asarray(v).reshape(chains, samples, *v.shape[1:])  # noqa: E731
     posterior = {k: shaped(v) for k, v in constrained.items() if k in unknowns}
@@ -45,6 +44,31 @@ def build_inference_data(model, problem, flat: np.ndarray, stats: dict, settings
     return az.from_dict(posterior=posterior, posterior_predictive=preds, observed_data=observed,
                         log_likelihood=loglik, sample_stats=sample_stats or None, dims=dims,
                         coords=coords)
+
+
+def posterior_pass(model, problem, flat: np.ndarray, on_chunk=None) -> tuple[dict, dict]:
+    """(constrained sites, pointwise log-likelihood by observable) of each row of ``flat``
+    (draws, dim), in calls of ``PASS_CHUNK`` draws (the last padded), one compile."""
+    def one(x, data):
+        c = problem.to_constrained(x, data)
+        values = {k: c[k] for k in model.unknown_names}
+        preds = {o.obs.name: c[PRED_PREFIX + o.obs.name] for o in model.observed}
+        return c, model.pointwise_log_likelihood(values, preds, data)
+
+    fn = cached(problem, ("posterior-pass", PASS_CHUNK),
+                lambda: jax.jit(jax.vmap(one, in_axes=(0, None))))
+    n = flat.shape[0]
+    parts = []
+    for i in range(0, n, PASS_CHUNK):
+        x = flat[i:i + PASS_CHUNK]
+        m = x.shape[0]
+        if m < PASS_CHUNK:
+            x = np.concatenate([x, np.repeat(x[-1:], PASS_CHUNK - m, axis=0)])
+        out = fn(jnp.asarray(x), problem.data)
+        parts.append(jax.tree_util.tree_map(lambda a, m=m: np.asarray(a)[:m], out))
+        if on_chunk is not None:
+            on_chunk(m)
+    return jax.tree_util.tree_map(lambda *a: np.concatenate(a), *parts)
 
 
 def _dims(model, posterior):
@@ -125,6 +149,99 @@ def warnings_in_words(rows: list[dict], idata, backend: str) -> list[str]:
     return out
 
 
+FAR_RMS = 3.0  # residual RMS (noise units) above which a fit is far from the data
+FAR_START = 5.0  # a track's fitted start this many standard errors from its first samples
+
+
+def fit_quality(model, idata) -> dict:
+    """How well the fit matches the data, from the check's own numbers (``diagnose.check``):
+    residual RMS in noise units overall and per observable, the worst time window, the
+    check's one-line verdict, each observed track's start against its first samples, and
+    warnings in words where the fit is far from the data (its intervals then describe a
+    wrong model)."""
+    from ..diagnose.check import check, fmt_sigma
+    from ..diagnose.workflow import observable_fits
+
+    fits = observable_fits(model, idata)
+    report = check(fits)
+    windows = [(o.name, w) for o in report.observables for w in o.windows
+               if np.isfinite(w.rms_sigma)]
+    worst = max(windows, key=lambda p: p[1].rms_sigma, default=None)
+    if report.consistent:
+        verdict = "residuals are consistent with the noise"
+    else:
+        f = report.flags[0]
+        verdict = f.message
+    q = {"rms_sigma": report.rms_sigma, "n": report.n,
+         "observables": {o.name: o.rms_sigma for o in report.observables},
+         "worst_window": None if worst is None else {
+             "observable": worst[0], "label": worst[1].label, "t_start": worst[1].t_start,
+             "t_end": worst[1].t_end, "rms_sigma": worst[1].rms_sigma},
+         "consistent": report.consistent, "verdict": verdict,
+         "starts": start_agreement(model, fits)}
+    warnings = []
+    if np.isfinite(report.rms_sigma) and report.rms_sigma > FAR_RMS:
+        warnings.append(
+            f"the fit is far from the data (residual RMS {fmt_sigma(report.rms_sigma)}, above "
+            f"{FAR_RMS:g}σ): its intervals describe a model that does not fit, not the "
+            "uncertainty of the real values. Look for a missing effect (`physdsl check`, "
+            "`physdsl diagnose`) or another basin (start values with --init)")
+    far = [s for s in q["starts"] if s["sigma"] > FAR_START]
+    if far:
+        s = max(far, key=lambda s: s["sigma"])
+        warnings.append(
+            f"{s['observable']} starts at {s['fitted']} in the fit but at {s['first_samples']} "
+            f"in the first samples ({s['sigma']:.0f} standard errors apart): the initial-state "
+            "unknowns are far from what the data show, and the intervals describe a wrong "
+            "model. Give start values from the first samples with --init")
+    q["warnings"] = warnings
+    from ..diagnose.check import clean
+
+    return clean(q)
+
+
+def start_agreement(model, fits) -> list[dict]:
+    """Per observed track that starts near t = 0: its fitted value at the first measured time
+    against the first samples' estimate there (a low-order polynomial through them, from
+    ``data_starts``), in standard errors of that estimate."""
+    from .data_starts import track_estimates
+
+    by_name = {f.name: f for f in fits}
+    out = []
+    for e in track_estimates(model.scene):
+        f = by_name.get(e.obs)
+        if f is None or e.quantity == "orientation" or not f.mask[0].all():
+            continue
+        t0 = float(f.times[0])
+        first = np.asarray(e.value, float) + (0.0 if e.slope is None else np.asarray(e.slope) * t0)
+        diff = np.asarray(f.point[0], float) - first
+        if e.quantity == "angle":
+            diff = (diff + np.pi) % (2 * np.pi) - np.pi
+        sd = np.maximum(np.asarray(e.value_sd, float), 1e-300)
+        z = float(np.max(np.abs(diff) / sd))
+        fmt = lambda v: ("(" + ", ".join(f"{x:.4g}" for x in v) + ")" if v.size > 1  # noqa: E731
+                         else f"{float(v[0]):.4g}") + f" {f.unit}"
+        out.append({"observable": e.obs, "t": t0, "fitted": fmt(np.asarray(f.point[0], float)),
+                    "first_samples": fmt(first), "sigma": z})
+    return out
+
+
+def fit_quality_lines(q: dict) -> list[str]:
+    """The fit quality as the CLI prints it (stdout)."""
+    from ..diagnose.check import fmt_sigma
+
+    def sig(x):
+        return fmt_sigma(float("nan") if x is None else x)
+
+    per = ", ".join(f"{k} {sig(v)}" for k, v in q["observables"].items())
+    lines = [f"fit: residual RMS {sig(q['rms_sigma'])} overall in noise units ({per})"]
+    w = q.get("worst_window")
+    if w:
+        lines.append(f"  worst window: {w['observable']} {w['label']} {sig(w['rms_sigma'])}")
+    lines.append(f"  check: {q['verdict']}")
+    return lines
+
+
 def format_table(rows: list[dict]) -> str:
     """The summary as aligned text (what the CLI prints)."""
     head = f"{'unknown':<40} {'mean':>12} {'sd':>10} {'5%':>12} {'95%':>12} {'ess_bulk':>8} {'ess_tail':>8} {'r_hat':>6}  unit"
@@ -144,8 +261,10 @@ def file_sha256(path) -> str:
     return h.hexdigest()
 
 
-def save_run(out: Path, model, idata, backend: str, settings) -> dict[str, Path]:
-    """Write posterior.nc, summary.csv and run.json into ``out`` atomically."""
+def save_run(out: Path, model, idata, backend: str, settings, extra: dict | None = None
+             ) -> dict[str, Path]:
+    """Write posterior.nc, summary.csv and run.json into ``out`` atomically (``extra``: more
+    entries of run.json, e.g. ``fit_quality``)."""
     import csv
     import io as _io
     from dataclasses import asdict
@@ -181,7 +300,9 @@ def save_run(out: Path, model, idata, backend: str, settings) -> dict[str, Path]
                      "blackjax": blackjax.__version__, "arviz": az.__version__,
                      "python": platform.python_version()},
         "warnings": warnings_in_words(rows, idata, backend),
+        **(extra or {}),
     }
+    run["warnings"] += (run.get("fit_quality") or {}).get("warnings", [])
     paths["run"] = io.write_json(out / "run.json", run)
     return paths
 

@@ -46,15 +46,7 @@ def _build_problem(model) -> Problem:
 
 def _functions(model):
     """(log density (x, data), to_constrained (x, data), dim) of ``model``'s structure."""
-    def unconstrained_draw(key):
-        with numpyro.handlers.seed(rng_seed=key):
-            draw = model.prior_values()
-        return unconstrain_fn(model.prior_values, (), {}, draw)
-
-    # only the layout is needed: shapes by abstract evaluation (running the prior eagerly, or
-    # even making a key, would compile each of its operations on its own)
-    layout = jax.eval_shape(unconstrained_draw, jax.ShapeDtypeStruct((2,), jnp.uint32))
-    unravel, dim = unraveler(layout)
+    unravel, dim = unraveler(unconstrained_layout(model))
 
     def logdensity(x, data):
         return -potential_energy(model.numpyro_model, (data,), {}, unravel(x))
@@ -76,6 +68,19 @@ def _functions(model):
         return safe_logdensity(logdensity), to_constrained, dim, None, None
     return (safe_logdensity(logdensity), to_constrained, dim, gauss_newton(with_residuals),
             jax.hessian(neg_log_prior))
+
+
+def unconstrained_layout(model) -> dict:
+    """Shapes of the unconstrained sites (name -> ShapeDtypeStruct), in the flat vector's
+    order (``ravel_pytree``'s: the names sorted)."""
+    def unconstrained_draw(key):
+        with numpyro.handlers.seed(rng_seed=key):
+            draw = model.prior_values()
+        return unconstrain_fn(model.prior_values, (), {}, draw)
+
+    # only the layout is needed: shapes by abstract evaluation (running the prior eagerly, or
+    # even making a key, would compile each of its operations on its own)
+    return jax.eval_shape(unconstrained_draw, jax.ShapeDtypeStruct((2,), jnp.uint32))
 
 
 def unraveler(layout):

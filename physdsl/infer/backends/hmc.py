@@ -96,7 +96,7 @@ class _BlackjaxHMCFamily(Backend):
         params = {"step_size": step_size, "inverse_mass_matrix": inverse_mass_matrix}
         return states, params, {"step_size": step_size}
 
-    def sample(self, problem, states, params, key, n, settings):
+    def sample(self, problem, states, params, key, n, settings, start=0):
         init, _, _ = _window(settings)
         run = self._runner(problem, settings)
         states = HMCState(*map(jnp.asarray, states))
@@ -106,7 +106,7 @@ class _BlackjaxHMCFamily(Backend):
                    (step_size, imm))
         shared = (jnp.zeros((settings.block, 2), jnp.int32), jnp.asarray(False))
         (states, _, _), (draws, stats) = run_blocks(run, problem, key, carries, n, settings.block,
-                                                    lambda start, m: shared)
+                                                    lambda _, m: shared, offset=start)
         return states, draws, stats
 
 

@@ -149,9 +149,14 @@ def _two_loop(g, pairs):
     return q
 
 
-def find_modes(problem, positions, steps: int = 300) -> jnp.ndarray:
-    """``find_mode`` from each row of ``positions``."""
-    return jnp.asarray(np.stack([find_mode(problem, x, steps) for x in np.asarray(positions)]))
+def find_modes(problem, positions, steps: int = 300, on_mode=None) -> jnp.ndarray:
+    """``find_mode`` from each row of ``positions``; ``on_mode(1)`` after each (progress)."""
+    modes = []
+    for x in np.asarray(positions):
+        modes.append(find_mode(problem, x, steps))
+        if on_mode is not None:
+            on_mode(1)
+    return jnp.asarray(np.stack(modes))
 
 
 MINOR_MODE = 10.0  # log-density units below the best mode: a basin with a negligible share
@@ -179,7 +184,20 @@ def major_modes(problem, modes, lps=None) -> tuple[np.ndarray, np.ndarray, int]:
 
 
 class LaplaceError(InferenceError):
-    """The log density is not strictly concave at the mode: no Laplace approximation there."""
+    """The log density is not strictly concave at the mode: no Laplace approximation there.
+
+    ``directions``: each flat or non-concave eigen-direction of the Hessian as (curvature,
+    [(coordinate name, weight), ...] largest first); ``mode`` and ``log_density``: the point
+    (flat, unconstrained) where it failed, set by the backend, so a caller can keep it."""
+
+    def __init__(self, message, span=None, hint=None, source=None, directions=()):
+        super().__init__(message, span, hint, source)
+        self.directions = list(directions)
+        self.mode = None
+        self.log_density = None
+
+
+MAIN_COMPONENT = 0.3  # |weight| of a coordinate in a unit eigen-direction worth naming
 
 
 def laplace_sqrt(problem, mode) -> np.ndarray:
@@ -187,7 +205,8 @@ def laplace_sqrt(problem, mode) -> np.ndarray:
 
     The Hessian is taken by central differences of the gradient. A direction along which the
     log density is flat or curves upwards (a kink, e.g. a contact switching on, or an unknown
-    the data do not determine) has no Laplace approximation: LaplaceError names how many.
+    the data do not determine) has no Laplace approximation: LaplaceError names each such
+    direction by the unknowns that make it up, with its curvature.
     """
     vg = value_and_grad_fn(problem)
     mode = np.asarray(mode, dtype=float)
@@ -201,30 +220,79 @@ def laplace_sqrt(problem, mode) -> np.ndarray:
         gm = np.asarray(vg(jnp.asarray(mode - e))[1])
         H[:, i] = -(gp - gm) / (2 * h[i])
     H = 0.5 * (H + H.T)
+    if not np.all(np.isfinite(H)):
+        raise LaplaceError(f"the log density's curvature at the mode is not finite in "
+                           f"{int((~np.isfinite(H)).any(axis=0).sum())} of {d} coordinates: "
+                           "no Laplace approximation", hint=LAPLACE_HINT)
     w, v = np.linalg.eigh(H)
     bad = ~np.isfinite(w) | (w <= 1e-10 * max(float(np.max(np.abs(w), initial=0.0)), 1e-300))
     if bad.any() or not np.all(np.isfinite(v)):
+        names = coordinate_names(problem)
+        directions = [(float(w[k]), _components(v[:, k], names)) for k in np.flatnonzero(bad)]
+        words = "; ".join(f"{_direction_words(c)} (curvature {cw:.3g})"
+                          for cw, c in directions)
         raise LaplaceError(f"the log density is not strictly concave at the mode along "
-                           f"{int(bad.sum())} of {d} directions: no Laplace approximation",
-                           hint="sample with --backend nuts or rmh, or give the unknowns the "
-                                "data cannot determine a value or a tighter prior")
+                           f"{int(bad.sum())} of {d} directions: no Laplace approximation. "
+                           f"Flat or not concave along: {words}", hint=LAPLACE_HINT,
+                           directions=directions)
     return v / np.sqrt(w)
+
+
+LAPLACE_HINT = ("to sample the posterior from this mode instead, add `--fallback rmh` to "
+                "`infer --backend map` (random-walk Metropolis, as `refine` does; in Python "
+                "physdsl.diagnose.rank.fit_with_fallback), or sample with --backend nuts; or "
+                "give the unknowns named above a value or a tighter prior")
+
+
+def coordinate_names(problem) -> list[str]:
+    """The unknown (and component) each flat unconstrained coordinate belongs to."""
+    from ..problem import unconstrained_layout
+
+    if problem.model is None:  # a bare log density (tests)
+        return [f"x[{i}]" for i in range(problem.dim)]
+    names = []
+    for path, leaf in jax.tree_util.tree_flatten_with_path(unconstrained_layout(problem.model))[0]:
+        name = getattr(path[0], "key", str(path[0]))  # the flat vector's order
+        size = int(np.prod(leaf.shape))
+        names += [name] if leaf.shape == () else [
+            f"{name}[{', '.join(map(str, np.unravel_index(i, leaf.shape)))}]" for i in range(size)]
+    return names
+
+
+def _components(vec, names) -> list[tuple[str, float]]:
+    """(name, weight) of a unit direction's main components, largest first (at least one)."""
+    order = np.argsort(-np.abs(vec))
+    keep = [i for i in order if abs(vec[i]) >= MAIN_COMPONENT] or [int(order[0])]
+    return [(names[i] if i < len(names) else f"x[{i}]", float(vec[i])) for i in keep]
+
+
+def _direction_words(components) -> str:
+    if len(components) == 1:
+        return components[0][0]
+    return " + ".join(f"{w:+.2f}·{n}" for n, w in components).replace("+ -", "- ")
 
 
 @register_backend
 class MAP(Backend):
     name = "map"
 
-    def warmup(self, problem, positions, key, settings, on_block=None):
-        """One optimisation per chain, then a Laplace approximation at each mode.
+    def warmup(self, problem, positions, key, settings, on_block=None, on_laplace=None):
+        """One optimisation per chain, then (``on_laplace()`` called as it begins) a Laplace
+        approximation at each mode.
 
         A chain that ended far below the best mode (more than ``MINOR_MODE`` in log density:
         a basin with a negligible share of the posterior, e.g. a start that settled on a
         contact's kink) or at a point with no Laplace approximation takes the best mode
         instead; only a best mode without one is an error."""
-        steps = max(settings.warmup, 50)  # one optimisation, no blocks: the caller's bar jumps
-        modes, lps, best = major_modes(problem, find_modes(problem, positions, steps))
-        chol_best = laplace_sqrt(problem, modes[best])  # LaplaceError if even the best has none
+        steps = max(settings.warmup, 50)  # one optimisation per start: on_block(1) after each
+        modes, lps, best = major_modes(problem, find_modes(problem, positions, steps, on_block))
+        if on_laplace is not None:
+            on_laplace()
+        try:
+            chol_best = laplace_sqrt(problem, modes[best])  # even the best has none: an error
+        except LaplaceError as err:  # the caller may keep the mode
+            err.mode, err.log_density = np.asarray(modes[best]), float(lps[best])
+            raise
         chols = []
         for i, m in enumerate(modes):
             chol = chol_best
@@ -237,8 +305,10 @@ class MAP(Backend):
         return (jnp.asarray(modes), {"chol": jnp.asarray(np.stack(chols))},
                 {"log_density_at_mode": lps})
 
-    def sample(self, problem, states, params, key, n, settings):
+    def sample(self, problem, states, params, key, n, settings, start=0):
         keys = jax.random.split(key, states.shape[0])
-        z = jax.vmap(lambda k: jax.random.normal(k, (n, states.shape[1])))(keys)
+        index = start + jnp.arange(n)  # draw j of a chain from fold_in(its key, j)
+        z = jax.vmap(lambda k: jax.vmap(lambda j: jax.random.normal(
+            jax.random.fold_in(k, j), (states.shape[1],)))(index))(keys)
         draws = states[:, None, :] + jnp.einsum("cij,cnj->cni", params["chol"], z)
         return states, draws, {}

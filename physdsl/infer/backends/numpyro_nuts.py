@@ -71,8 +71,8 @@ class NumpyroNUTS(Backend):
                                settings.block, on_block=on_block)
         return states, {}, {"step_size": states.adapt_state.step_size}
 
-    def sample(self, problem, states, params, key, n, settings):
+    def sample(self, problem, states, params, key, n, settings, start=0):
         states = jax.tree_util.tree_map(jnp.asarray, states)
         states, (draws, stats) = run_blocks(_runner(problem, settings), problem, key, states, n,
-                                            settings.block)
+                                            settings.block, offset=start)
         return states, draws, stats

@@ -76,12 +76,12 @@ class RMH(Backend):
             settings.block, lambda start, m: (jnp.asarray(start), jnp.asarray(True)), on_block)
         return states, {"sigma": sigma}, {"proposal_sigma": sigma}
 
-    def sample(self, problem, states, params, key, n, settings):
+    def sample(self, problem, states, params, key, n, settings, start=0):
         states = RWState(*map(jnp.asarray, states))
         sigma = jnp.asarray(params["sigma"])
         chains, dim = states.position.shape
         moments = (jnp.zeros(chains), states.position, jnp.broadcast_to(jnp.eye(dim), (chains, dim, dim)))
         (states, _, _), (draws, stats) = run_blocks(
             self._runner(problem, settings), problem, key, (states, moments, sigma), n,
-            settings.block, lambda start, m: (jnp.asarray(0), jnp.asarray(False)))
+            settings.block, lambda _, m: (jnp.asarray(0), jnp.asarray(False)), offset=start)
         return states, draws, stats
