@@ -22,9 +22,9 @@ def _names(items, what: str) -> str:
 
 
 def scan_spec(spec, m, notes: Notes) -> None:
-    """Add a note for every element kind of ``spec`` that the importer does not translate."""
+    """Add a note for every element kind of ``spec`` that the importer does not translate
+    (sites are markers, see ``read``)."""
     groups = [
-        (spec.sites, "sites", "not expressed (physdsl has no markers yet)"),
         (spec.tendons, "tendons", "not expressed (a spatial tendon between two points is a "
                                   "physdsl spring/damper; add one by hand)"),
         (spec.equalities, "equality constraints", "not expressed (physdsl has no loop closures)"),

@@ -43,6 +43,7 @@ class _Reader:
         self.effects: list = []
         self.controls: list = []
         self.contacts: list = []
+        self.markers: list = []
         # physdsl name of each MuJoCo body ("world" for the world and static bodies)
         self.body_name: dict[int, str] = {0: "world"}
         self.joint_name: dict[int, str] = {}
@@ -338,6 +339,26 @@ class _Reader:
             self.notes.add(f"joint '{name}': armature {m.dof_armature[va]:.6g} (rotor inertia) is "
                            "not expressible")
 
+    # ---- sites --------------------------------------------------------------------------------
+    def sites(self):
+        """Sites on moving bodies become markers (a point in the physdsl body's frame)."""
+        m, d, mj = self.m, self.d, self.mj
+        for s in range(m.nsite):
+            b = m.site_bodyid[s]
+            label = mj.mj_id2name(m, mj.mjtObj.mjOBJ_SITE, s) or f"#{s}"
+            body = self.body_name.get(b, "world")
+            if body == "world":
+                self.notes.add(f"site '{label}' on the world or a static body: not expressed "
+                               "(a marker rides on a moving body)")
+                continue
+            name = self._name(mj.mjtObj.mjOBJ_SITE, s, f"{body}_site")
+            R = d.ximat[b].reshape(3, 3)
+            local = R.T @ (d.site_xpos[s] - d.xipos[b])
+            fs = [field("position", quantity(local, "m"))]
+            if not np.allclose(m.site_rgba[s], (0.5, 0.5, 0.5, 1.0)):
+                fs.append(field("color", quantity(m.site_rgba[s][:3], digits=6)))
+            self.markers.append(ast.MarkerItem(name, body, block(*fs)))
+
     # ---- actuators, contacts, world ----------------------------------------------------------
     def actuators(self, controls: str | None):
         m, mj = self.m, self.mj
@@ -471,11 +492,12 @@ def read_model(spec, m, *, source: str, controls: str | None = None,
             continue
         child = r.moving_body(b)
         r.body_joints(b, child)
+    r.sites()
     r.actuators(controls)
     r.contact_items()
     scan_spec(spec, m, r.notes)
     world = r.world()
-    items = (world, *r.bodies, *r.joints, *r.effects, *r.contacts, *r.controls)
+    items = (world, *r.bodies, *r.markers, *r.joints, *r.effects, *r.contacts, *r.controls)
     scene_name = Names().make(spec.modelname or "imported", "imported")
     module = ast.Module((ast.SceneDecl(scene_name, items),))
     body = format_module(module)

@@ -116,6 +116,7 @@ class _Writer:
                 body.inertia, body.iquat = _principal(np.asarray(prm["inertia"][i]))
                 body.ipos = np.asarray(prm["com"][i])
             self.geom(b, body, massless=mass <= 0)
+            self.sites(b, body)
             self.joint(i, b, body, tj)
 
     def geom(self, b, body, massless: bool):
@@ -156,6 +157,17 @@ class _Writer:
             from ..expr import evaluate
             geom.rgba = np.r_[np.asarray(evaluate(b.color, self.prm_values), dtype=float), 1.0]
         self.geom_of[b.name] = b.name
+
+    def sites(self, b, body):
+        """Markers on body ``b`` as MJCF sites (the MJCF body frame is the physdsl body frame)."""
+        from ..expr import evaluate
+
+        for mk in getattr(self.scene, "markers", ()):
+            if mk.body == b.name:
+                site = body.add_site(name=mk.name,
+                                     pos=np.asarray(evaluate(mk.position, self.prm_values), dtype=float))
+                if mk.color is not None:
+                    site.rgba = np.r_[np.asarray(evaluate(mk.color, self.prm_values), dtype=float), 1.0]
 
     def joint(self, i, b, body, tj):
         mj, J, prm = self.mj, self.mj.mjtJoint, self.prm
