@@ -99,13 +99,34 @@ class _Writer:
             self.notes.add("contact lcp (hard, complementarity): MuJoCo's contacts are soft "
                            "(solref, solimp)")
 
+    def _frames(self) -> set[int]:
+        """Massless, shapeless bodies moved by a joint whose one child is moved by another:
+        MuJoCo refuses massless moving bodies, so their joints go into the child's MJCF body
+        (MJCF's several joints in one body, applied in order)."""
+        m, out = self.model, set()
+        marked = {mk.body for mk in getattr(self.scene, "markers", ())}
+        for i, b in enumerate(self.scene.bodies):
+            kids = m.children[i]
+            if (m.joints[i].kind in ("hinge", "slider", "ball") and b.shape is None
+                    and float(self.prm["mass"][i]) <= 0 and len(kids) == 1 and b.name not in marked
+                    and m.joints[kids[0]].kind in ("hinge", "slider", "ball")):
+                out.add(i)
+        return out
+
     def bodies(self):
         m, prm, mj = self.model, self.prm, self.mj
+        frames = self._frames()
         for i in m.order:
+            if i in frames:
+                continue
             b, tj = self.scene.bodies[i], m.joints[i]
-            parent = self.spec.worldbody if tj.parent < 0 else self.mjbody[tj.parent]
-            ppos = np.zeros(3) if tj.parent < 0 else prm["ref_pos"][tj.parent]
-            pquat = np.array([1.0, 0, 0, 0]) if tj.parent < 0 else prm["ref_quat"][tj.parent]
+            chain, p = [], tj.parent
+            while p >= 0 and p in frames:
+                chain.insert(0, p)
+                p = m.joints[p].parent
+            parent = self.spec.worldbody if p < 0 else self.mjbody[p]
+            ppos = np.zeros(3) if p < 0 else prm["ref_pos"][p]
+            pquat = np.array([1.0, 0, 0, 0]) if p < 0 else prm["ref_quat"][p]
             pos, quat = _local(ppos, pquat, prm["ref_pos"][i], prm["ref_quat"][i], mj)
             body = parent.add_body(name=b.name, pos=pos, quat=quat)
             self.mjbody[i] = body
@@ -117,7 +138,8 @@ class _Writer:
                 body.ipos = np.asarray(prm["com"][i])
             self.geom(b, body, massless=mass <= 0)
             self.sites(b, body)
-            self.joint(i, b, body, tj)
+            for k in chain + [i]:
+                self.joint(k, i, body)
 
     def geom(self, b, body, massless: bool):
         mj, G = self.mj, self.mj.mjtGeom
@@ -169,8 +191,11 @@ class _Writer:
                 if mk.color is not None:
                     site.rgba = np.r_[np.asarray(evaluate(mk.color, self.prm_values), dtype=float), 1.0]
 
-    def joint(self, i, b, body, tj):
+    def joint(self, k, i, body):
+        """Tree joint of body ``k`` into the MJCF body of physdsl body ``i`` (k == i, or a
+        massless frame above i)."""
         mj, J, prm = self.mj, self.mj.mjtJoint, self.prm
+        tj = self.model.joints[k]
         if tj.kind == "fixed":
             return
         name = self.scene.joints[tj.scene_joint].name if tj.scene_joint is not None else None
@@ -183,8 +208,8 @@ class _Writer:
         mj.mju_quat2Mat(R, prm["ref_quat"][i])
         R = R.reshape(3, 3)
         kind = {"hinge": J.mjJNT_HINGE, "slider": J.mjJNT_SLIDE, "ball": J.mjJNT_BALL}[tj.kind]
-        jt = body.add_joint(name=name, type=kind, pos=R.T @ (prm["anchor"][i] - prm["ref_pos"][i]),
-                            axis=R.T @ prm["axis"][i])
+        jt = body.add_joint(name=name, type=kind, pos=R.T @ (prm["anchor"][k] - prm["ref_pos"][i]),
+                            axis=R.T @ prm["axis"][k])
         joint = self.scene.joints[tj.scene_joint]
         if joint.limits is not None:
             from ..expr import evaluate
@@ -248,8 +273,10 @@ class _Writer:
         for i, tj in enumerate(self.model.joints):
             if tj.nq == 0:
                 continue
-            bid = self.mj.mj_name2id(m, self.mj.mjtObj.mjOBJ_BODY, self.scene.bodies[i].name)
-            j = m.body_jntadr[bid]
+            if tj.scene_joint is not None:
+                j = self.mj.mj_name2id(m, self.mj.mjtObj.mjOBJ_JOINT, self.scene.joints[tj.scene_joint].name)
+            else:  # an implicit free joint: the body's only joint
+                j = m.body_jntadr[self.mj.mj_name2id(m, self.mj.mjtObj.mjOBJ_BODY, self.scene.bodies[i].name)]
             qpos[m.jnt_qposadr[j]:m.jnt_qposadr[j] + tj.nq] = q0[tj.qadr:tj.qadr + tj.nq]
             qvel[m.jnt_dofadr[j]:m.jnt_dofadr[j] + tj.nv] = v0[tj.vadr:tj.vadr + tj.nv]
         self.spec.add_key(name="initial", qpos=qpos, qvel=qvel)
