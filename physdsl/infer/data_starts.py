@@ -54,8 +54,10 @@ class Estimate:
 def track_estimates(scene) -> list[Estimate]:
     """Value and slope at t = 0 of every observed trajectory that starts near t = 0."""
     out = []
+    markers = {m.name for m in scene.markers}  # points on bodies, not body states
     for o in scene.observations:
-        if o.quantity not in SOURCES or not len(o.times) or o.times[0] > WINDOW_S / 2:
+        if o.quantity not in SOURCES or not len(o.times) or o.times[0] > WINDOW_S / 2 \
+                or o.target in markers:
             continue
         est = _estimate(o)
         if est is not None:
