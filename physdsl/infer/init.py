@@ -144,8 +144,11 @@ def _value(text: str, offset: int, value: str, unknown) -> np.ndarray:
                             f"{r.dim.name()}", span, f"write it in {want.si_text()}",
                             source=text)
     if tuple(r.shape) != tuple(unknown.shape):
+        example = ("(" + ", ".join(["0"] * unknown.shape[0]) + ")") if len(unknown.shape) == 1 \
+            else "0"
         raise PhysTypeError(f"'{unknown.name}' needs {_shape_words(unknown.shape)}, got "
-                            f"{_shape_words(r.shape)}", span, None, source=text)
+                            f"{_shape_words(r.shape)}", span,
+                            f"e.g. {unknown.name}={example}{_unit(unknown)}", source=text)
     x = np.asarray(evaluate(r.expr, {}), dtype=float)
     support = _support(unknown)
     if support is not None:
@@ -201,6 +204,7 @@ def _relocate(ex: PhysError, text: str, shift: int) -> PhysError:
         end = s.end_column + shift if s.end_column else None
         ex.span = Span(SOURCE, 1, max(s.column + shift, 1), 1 if s.end_line else None, end)
     ex.source = text
+    ex.message = ex.message.replace("the end of the file", "the end of the --init text")
     return ex
 
 
