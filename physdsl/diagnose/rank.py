@@ -548,14 +548,24 @@ def order_by_evidence(confirmed: list[Ranked]) -> list[Ranked]:
     """Confirmed candidates, best first: by ΔELPD, near-ties (``tie_margin``) broken by ΔLFO.
 
     Pointwise LOO barely separates effects that bend a trajectory alike over the fitted span
-    (linear vs quadratic drag at nearly constant speed); predicting the future does.
+    (linear vs quadratic drag at nearly constant speed); predicting the future does. Among
+    the tied, strong Laplace evidence (a Bayes factor above 10 over the ΔLFO leader, see
+    ``stepwise.STRONG``) puts a candidate first: it counts what a strength costs its prior.
     """
+    from .stepwise import STRONG
+
     best = sorted(confirmed, key=lambda r: -r.delta_elpd)
     if not best:
         return best
     tied = [r for r in best if best[0].delta_elpd - r.delta_elpd < tie_margin(best[0], r, "elpd")]
     rest = [r for r in best if r not in tied]
-    return sorted(tied, key=lambda r: -(r.delta_lfo or 0.0)) + rest
+    tied = sorted(tied, key=lambda r: -(r.delta_lfo or 0.0))
+    known = [r for r in tied if r.log_evidence is not None]
+    top = max(known, key=lambda r: r.log_evidence, default=None)
+    if top is not None and tied[0].log_evidence is not None and \
+            top.log_evidence - tied[0].log_evidence > STRONG:
+        tied = [top] + [r for r in tied if r is not top]
+    return tied + rest
 
 
 def evidence_ties(winner: Ranked, confirmed: list[Ranked]) -> list[Ranked]:

@@ -163,3 +163,23 @@ def test_the_loop_drops_an_effect_whose_evidence_vanished(steep, tmp_path):
     left = load(r1.scene)
     assert {(e.effect, tuple(e.target)) for e in left.effects} == {("quadratic_drag", ("ball",))}
     assert r1.log_evidence > rounds[0].log_evidence
+
+
+def test_strong_evidence_breaks_a_tie_in_elpd_not_a_clear_win():
+    """Among candidates tied in ΔELPD the ΔLFO leader wins unless another's Laplace evidence
+    is stronger by more than log 10; a candidate ahead in ΔELPD beyond the margin stays first."""
+    from physdsl.diagnose.rank import Ranked, order_by_evidence
+
+    def row(effect, elpd, lfo, log_z):
+        r = Ranked(0, "effect", effect, "ball", 1.0, 0.1, 1, confirmed=True)
+        r.delta_elpd, r.delta_lfo, r.log_evidence = elpd, lfo, log_z
+        return r
+
+    tie = [row("linear_drag", 851.2, 2094.0, 300.0), row("quadratic_drag", 851.8, 2090.6, 301.0)]
+    assert order_by_evidence(tie)[0].effect == "linear_drag"  # 1 nat: not strong
+    tie[1].log_evidence = 303.0
+    assert order_by_evidence(tie)[0].effect == "quadratic_drag"  # 3 nats > log 10
+    tie[1].log_evidence = None
+    assert order_by_evidence(tie)[0].effect == "linear_drag"  # n/a: ΔLFO decides
+    clear = [row("linear_drag", 900.0, 2094.0, 300.0), row("quadratic_drag", 851.8, 2090.6, 310.0)]
+    assert order_by_evidence(clear)[0].effect == "linear_drag"
