@@ -22,7 +22,11 @@ def register(app: typer.Typer) -> None:
         from ..mjcf import import_model
 
         refuse_overwrite(out, force)
-        text, notes = import_model(model, controls=controls, key=key)
+        text, notes, files = import_model(model, controls=controls, key=key)
+        for name in files:
+            refuse_overwrite(out.parent / name, force)
+        for name, content in files.items():
+            write_text(out.parent / name, content)
         write_text(out, text)
         if notes:
             print(f"{model}: not expressed in physdsl (listed atop {out}):", file=sys.stderr)

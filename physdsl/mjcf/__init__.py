@@ -39,7 +39,8 @@ def load_spec(path: str | Path):
 
 
 def import_model(path: str | Path, *, controls: str | None = None, key: str | None = None):
-    """The .phys text of an MJCF/URDF model and the list of what it cannot express (see ``read``)."""
+    """``Imported(text, notes, files)``: the .phys text of an MJCF/URDF model, what it cannot
+    express, and mesh files (name -> OBJ text) to write beside the scene (see ``read``)."""
     from .read import read_model
 
     spec, model = load_spec(path)

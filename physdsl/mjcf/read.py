@@ -8,6 +8,8 @@ inertial frame (centre of mass, principal axes), which is what physdsl's ``posit
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from ..syntax import ast
@@ -44,6 +46,9 @@ class _Reader:
         self.controls: list = []
         self.contacts: list = []
         self.markers: list = []
+        self.files: dict[str, str] = {}  # mesh files to write beside the scene
+        self.files_names: dict[int, str] = {}
+        self.file_names = Names()
         # physdsl name of each MuJoCo body ("world" for the world and static bodies)
         self.body_name: dict[int, str] = {0: "world"}
         self.joint_name: dict[int, str] = {}
@@ -110,10 +115,32 @@ class _Reader:
             kind = "capsule" if t == G.mjGEOM_CAPSULE else "cylinder"
             return call(kind, radius=quantity(s[0], "m"), length=quantity(2 * s[1], "m"))
         label = self.mj.mj_id2name(m, self.mj.mjtObj.mjOBJ_GEOM, g) or f"#{g}"
+        if t == G.mjGEOM_MESH:
+            return self._mesh(g, label)
         kind = str(G(t)).split("_")[-1].lower()
         self.notes.add(f"geom '{label}' ({kind}): no physdsl shape; its mass is in the body's "
                        "inertia, but it neither collides nor renders")
         return None
+
+    def _mesh(self, g: int, label: str):
+        """``mesh("NAME.obj")``: MuJoCo's compiled vertices (in the geom frame) written as OBJ
+        beside the scene; physdsl needs a closed volume and has no mesh contacts."""
+        import trimesh
+
+        m, k = self.m, self.m.geom_dataid[g]
+        v = m.mesh_vert[m.mesh_vertadr[k]:m.mesh_vertadr[k] + m.mesh_vertnum[k]]
+        f = m.mesh_face[m.mesh_faceadr[k]:m.mesh_faceadr[k] + m.mesh_facenum[k]]
+        mesh = trimesh.Trimesh(np.asarray(v, dtype=float), np.asarray(f), process=False)
+        if not mesh.is_volume:
+            self.notes.add(f"geom '{label}' (mesh): not a closed volume, not imported (its mass "
+                           "is in the body's inertia)")
+            return None
+        raw = self.mj.mj_id2name(m, self.mj.mjtObj.mjOBJ_MESH, k) or f"mesh{k}"
+        fname = self.files_names.setdefault(k, self.file_names.make(raw, "mesh") + ".obj")
+        self.files[fname] = trimesh.exchange.obj.export_obj(mesh, include_normals=False)
+        self.notes.add(f"geom '{label}' (mesh): written to {fname}; it renders but does not "
+                       "collide (physdsl has no mesh contacts)")
+        return ast.Call("mesh", (ast.Arg(None, ast.Str(fname)),))
 
     def _color(self, g: int):
         rgba = self.m.geom_rgba[g]
@@ -122,6 +149,8 @@ class _Reader:
         return field("color", quantity(rgba[:3], digits=6))  # float32 in MuJoCo
 
     def _collides(self, g: int) -> bool:
+        if self.m.geom_type[g] == self.mj.mjtGeom.mjGEOM_MESH:
+            return False
         return bool(self.m.geom_contype[g] or self.m.geom_conaffinity[g]) or \
             any(g in (self.m.pair_geom1[p], self.m.pair_geom2[p]) for p in range(self.m.npair))
 
@@ -472,11 +501,19 @@ class _Reader:
             field("integrator", ast.Name(integ))))
 
 
+class Imported(NamedTuple):
+    """An imported scene: its text, what it could not express, mesh files to write beside it."""
+
+    text: str
+    notes: list[str]
+    files: dict[str, str]
+
+
 def read_model(spec, m, *, source: str, controls: str | None = None,
-               key: str | None = None) -> tuple[str, list[str]]:
-    """(.phys text, notes) of compiled model ``m`` (from ``spec``); ``source`` names the file
-    in the header; ``controls``: a CSV file (relative to the scene) whose columns, named after
-    the actuators, drive them; ``key``: keyframe name or index giving the initial state."""
+               key: str | None = None) -> Imported:
+    """The scene of compiled model ``m`` (from ``spec``); ``source`` names the file in the
+    header; ``controls``: a CSV file (relative to the scene) whose columns, named after the
+    actuators, drive them; ``key``: keyframe name or index giving the initial state."""
     r = _Reader(spec, m, key)
     mj = r.mj
     static = {0}
@@ -507,4 +544,4 @@ def read_model(spec, m, *, source: str, controls: str | None = None,
         head += [f"#   - {n}" for n in r.notes.items]
     else:
         head.append("# Everything in the model is expressed in this scene.")
-    return "\n".join(head) + "\n\n" + body, list(r.notes.items)
+    return Imported("\n".join(head) + "\n\n" + body, list(r.notes.items), dict(r.files))

@@ -156,11 +156,20 @@ class _Writer:
             s = [size["radius"], 0.5 * size["length"], 0]
         elif kind == "plane":
             t, s = G.mjGEOM_PLANE, [0, 0, 1]
+        elif kind == "mesh":  # vertices in the body frame, as physdsl reads the file
+            import trimesh
+
+            mesh = trimesh.load(b.shape.mesh_path, force="mesh")
+            self.spec.add_mesh(name=f"{b.name}_mesh", uservert=np.asarray(mesh.vertices, float).ravel(),
+                               userface=np.asarray(mesh.faces).ravel())
+            t, s = G.mjGEOM_MESH, [0, 0, 0]
         else:
             self.notes.add(f"body '{b.name}': shape {kind} is not exported (mass and inertia are)")
             return
         geom = body.add_geom(name=b.name, type=t, size=np.asarray(s, dtype=float), contype=0,
                              conaffinity=0)
+        if kind == "mesh":
+            geom.meshname = f"{b.name}_mesh"
         if kind == "plane":  # the plane's surface passes through the body position, normal n
             n = np.asarray(size["normal"], dtype=float)
             n = n / np.linalg.norm(n)
