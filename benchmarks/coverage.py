@@ -1,0 +1,159 @@
+"""Coverage of the 90% intervals on MuJoCo-made data: robust (the default) against the plain
+model posterior, with ``name: value`` lines.
+
+Cases: every ``examples/hidden-effect/CASE`` with its hidden effect added to ``naive.phys``
+(what ``refine``'s first round fits: the right effect at the library's default prior), and
+the MuJoCo-made examples that have no hidden effect (``double_pendulum``, ``cart_pole``).
+Each is fitted once by MAP + Laplace (``infer --backend map``, default starts, 4 chains x
+``--samples`` draws), in its own process with a time limit. Per true parameter component:
+whether it lies in the 5-95% interval of the model posterior and of the robust one, and
+the width ratio. Printed:
+
+- ``case.CASE``: residual RMS (noise units) and the residual components with a discrepancy,
+- ``row.CASE.PARAM``: truth, model interval, robust interval, width ratio,
+- ``coverage_90.model`` / ``coverage_90.robust``: fraction of all true components inside,
+- ``width_ratio.median``: median robust / model width over all components,
+- ``width_ratio.max_white``: the largest ratio among cases fitted at the noise (RMS <= 1.05
+  with no discrepancy found).
+
+Run: .venv/bin/python benchmarks/coverage.py [--case pendulum ...] [--samples 500]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+HIDDEN = ROOT / "examples" / "hidden-effect"
+PLAIN = ("double_pendulum", "cart_pole")  # MuJoCo-made examples whose scene has every effect
+
+
+def cases() -> dict[str, Path]:
+    out = {p.name: p for p in sorted(HIDDEN.iterdir()) if (p / "naive.phys").exists()}
+    out.update({n: ROOT / "examples" / n for n in PLAIN if (ROOT / "examples" / n).exists()})
+    return out
+
+
+def scene_text(folder: Path) -> str:
+    """The case's scene: naive.phys with the hidden effect(s) added, or the example's own."""
+    from physdsl.syntax import load
+    from physdsl.syntax.edit import add_effect
+
+    if not (folder / "naive.phys").exists():
+        return (folder / f"{folder.name}.phys").read_text()
+    hidden = json.loads((folder / "truth.json").read_text())
+    text = (folder / "naive.phys").read_text()
+    for eff in [hidden["hidden_effect"]] + hidden.get("also_hidden", []):
+        targets = [eff["target"]]
+        if "*" in eff["target"]:  # a pair with every moving body
+            fixed = eff["target"].split(",")[0]
+            targets = [f"{fixed},{b.name}" for b in load(folder / "naive.phys").bodies
+                       if b.name != fixed and b.shape is not None and not b.fixed]
+        for target in targets:
+            text = add_effect(text, eff["effect"], target)
+    return text
+
+
+def truth_values(folder: Path, names) -> dict:
+    t = json.loads((folder / "truth.json").read_text())
+    values = {**t.get("unknowns", {}), **t.get("parameters", {})}
+    return {k: values[k] for k in names if k in values}
+
+
+def run_case(name: str, samples: int) -> dict:
+    """Fit one case in this process: per true component, the two intervals."""
+    import numpy as np
+
+    import physdsl  # noqa: F401 - float64
+    from physdsl.compile import Model
+    from physdsl.infer.intervals import GROUP
+    from physdsl.observe import trajectory
+    from physdsl.syntax import loads
+
+    folder = cases()[name]
+    model = Model(loads(scene_text(folder), filename=str(folder / "scene.phys"),
+                        base_dir=folder))
+    t0 = time.time()
+    idata = model.infer(backend="map", samples=samples, progress=False)
+    wall = time.time() - t0
+    truth = truth_values(folder, model.unknown_names)
+    rows = []
+    for k, v in truth.items():
+        a = np.asarray(idata.posterior[k].values).reshape(-1, np.size(v))
+        b = np.asarray(getattr(idata, GROUP)[k].values).reshape(-1, np.size(v))
+        for i, x in enumerate(np.ravel(v)):
+            qa, qb = np.quantile(a[:, i], [0.05, 0.95]), np.quantile(b[:, i], [0.05, 0.95])
+            rows.append({"param": k if np.size(v) == 1 else f"{k}[{i}]", "truth": float(x),
+                         "model": [float(qa[0]), float(qa[1])], "robust": [float(qb[0]), float(qb[1])],
+                         "in_model": bool(qa[0] <= x <= qa[1]), "in_robust": bool(qb[0] <= x <= qb[1]),
+                         "ratio": float((qb[1] - qb[0]) / max(qa[1] - qa[0], 1e-300))})
+    sq, n = 0.0, 0
+    pp = idata.posterior_predictive
+    mean_values = {u: np.asarray(idata.posterior[u].values).mean(axis=(0, 1)) for u in model.unknown_names}
+    for o in model.observed:
+        pred = np.asarray(pp["pred:" + o.obs.name].values).mean(axis=(0, 1))
+        d = model.data[o.obs.name]
+        r = np.asarray(trajectory.residual(o.obs.quantity, pred, d["measured"]))
+        r = r / np.asarray(model.noise_scale(o.obs, mean_values))
+        sq += float(np.sum(np.where(d["mask"], r, 0.0) ** 2))
+        n += int(np.sum(d["mask"]))
+    attrs = getattr(idata, GROUP).attrs
+    return {"rows": rows, "rms": (sq / max(n, 1)) ** 0.5, "wall_s": wall,
+            "discrepancies": attrs.get("discrepancies", "")}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--case", action="append", help="only these cases")
+    ap.add_argument("--samples", type=int, default=500, help="Laplace draws per chain")
+    ap.add_argument("--timeout", type=float, default=1500.0, help="seconds per case")
+    ap.add_argument("--one", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.one:
+        print(json.dumps(run_case(args.one, args.samples)))
+        return
+    results = {}
+    for name in args.case or list(cases()):
+        t0 = time.time()
+        try:
+            p = subprocess.run([sys.executable, __file__, "--one", name, "--samples",
+                                str(args.samples)], capture_output=True, text=True,
+                               timeout=args.timeout, cwd=ROOT)
+            out = json.loads(p.stdout.strip().splitlines()[-1]) if p.returncode == 0 else None
+            if out is None:
+                print(f"case.{name}: failed: {p.stderr.strip().splitlines()[-1:]}", flush=True)
+                continue
+        except subprocess.TimeoutExpired:
+            print(f"case.{name}: timed out after {args.timeout:.0f} s", flush=True)
+            continue
+        results[name] = out
+        print(f"case.{name}: rms {out['rms']:.3f} sigma; discrepancies {out['discrepancies']}; "
+              f"fit {out['wall_s']:.0f} s (wall {time.time() - t0:.0f} s, load "
+              f"{os.getloadavg()[0]:.1f})", flush=True)
+        for r in out["rows"]:
+            print(f"row.{name}.{r['param']}: truth {r['truth']:.6g} model [{r['model'][0]:.6g}, "
+                  f"{r['model'][1]:.6g}] {'in' if r['in_model'] else 'OUT'} robust "
+                  f"[{r['robust'][0]:.6g}, {r['robust'][1]:.6g}] "
+                  f"{'in' if r['in_robust'] else 'OUT'} ratio {r['ratio']:.2f}", flush=True)
+    rows = [r for out in results.values() for r in out["rows"]]
+    if not rows:
+        return
+    import numpy as np
+
+    white = [r["ratio"] for out in results.values() if out["rms"] <= 1.05
+             and out["discrepancies"].startswith("0 ") for r in out["rows"]]
+    print(f"coverage_90.model: {np.mean([r['in_model'] for r in rows]):.3f} "
+          f"({sum(r['in_model'] for r in rows)} of {len(rows)})")
+    print(f"coverage_90.robust: {np.mean([r['in_robust'] for r in rows]):.3f} "
+          f"({sum(r['in_robust'] for r in rows)} of {len(rows)})")
+    print(f"width_ratio.median: {np.median([r['ratio'] for r in rows]):.2f}")
+    print(f"width_ratio.max_white: {max(white):.2f}" if white else "width_ratio.max_white: n/a")
+
+
+if __name__ == "__main__":
+    main()
