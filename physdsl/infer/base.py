@@ -43,6 +43,8 @@ class Settings:
     # constrained values ((name, value), ...) for the first chain's start, the other unknowns
     # and chains from the prior: a refit of a nested model starts where the smaller one ended
     start: tuple = ()
+    intervals: str = "robust"  # what summary.csv shows: the widened draws (``robust``, see
+    # ``intervals.py``) or the plain posterior (``model``); both are kept in posterior.nc
 
 
 class Problem(NamedTuple):
