@@ -14,6 +14,7 @@ import numpy as np
 from .. import io
 from ..compile import OBS_PREFIX, PRED_PREFIX
 from .base import cached
+from .intervals import add_robust, shown_posterior
 
 
 PASS_CHUNK = 64  # draws per call of the posterior pass: one compile for any number of
@@ -41,9 +42,11 @@ def build_inference_data(model, problem, flat: np.ndarray, stats: dict, settings
                 for o in model.observed}
     sample_stats = {k: np.asarray(v) for k, v in stats.items()}
     dims, coords = _dims(model, posterior)
-    return az.from_dict(posterior=posterior, posterior_predictive=preds, observed_data=observed,
-                        log_likelihood=loglik, sample_stats=sample_stats or None, dims=dims,
-                        coords=coords)
+    idata = az.from_dict(posterior=posterior, posterior_predictive=preds, observed_data=observed,
+                         log_likelihood=loglik, sample_stats=sample_stats or None, dims=dims,
+                         coords=coords)
+    return add_robust(idata, model, problem, flat, constrained,  # + posterior_robust
+                      getattr(settings, "intervals", "robust"))
 
 
 def posterior_pass(model, problem, flat: np.ndarray, on_chunk=None) -> tuple[dict, dict]:
@@ -102,7 +105,7 @@ def pointwise_log_likelihood(model, values: dict) -> dict[str, np.ndarray]:
 def summary_rows(model, idata) -> list[dict]:
     """Per scalar component of every unknown: mean, sd, 5%, 95%, ESS bulk/tail, r-hat, unit."""
     rows = []
-    post = idata.posterior
+    post, shown = shown_posterior(idata)  # robust (default) or model: ``intervals.py``
     for u in model.unknowns:
         arr = np.asarray(post[u.name].values)  # (chain, draw, *shape)
         flat = arr.reshape(arr.shape[0], arr.shape[1], -1)
@@ -115,6 +118,7 @@ def summary_rows(model, idata) -> list[dict]:
                 "ess_bulk": _safe(lambda: az.ess(x, method="bulk")),
                 "ess_tail": _safe(lambda: az.ess(x, method="tail")),
                 "r_hat": _safe(lambda: az.rhat(x)) if x.shape[0] > 1 else float("nan"),
+                "intervals": shown,
             })
     return rows
 
