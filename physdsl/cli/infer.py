@@ -30,6 +30,10 @@ def register(app: typer.Typer) -> None:
         fallback: str = typer.Option(None, "--fallback",
                                      help="With --backend map: where the Laplace step fails, "
                                           "sample from the mode with this sampler (rmh)."),
+        intervals: str = typer.Option("robust", "--intervals",
+                                      help="Intervals in summary.csv: robust (widened where the "
+                                           "residuals are above the noise or in runs) or model "
+                                           "(the plain posterior); posterior.nc holds both."),
     ) -> None:
         """Fit a scene to its measurements; write posterior.nc, summary.csv and run.json.
 
@@ -42,6 +46,7 @@ def register(app: typer.Typer) -> None:
         from ..infer.backends.map import LaplaceError
         from ..infer.init import start_values
         from ..infer.interrupt import Interrupted
+        from ..infer.intervals import SHOWN
         from ..syntax import load
 
         get_backend(backend)  # fail fast on an unknown name, before compiling
@@ -49,11 +54,13 @@ def register(app: typer.Typer) -> None:
             raise UsageError(f"--fallback {fallback} with --backend {backend}",
                              hint="--fallback rmh goes with --backend map: random-walk "
                                   "Metropolis from the mode where the Laplace step fails")
+        if intervals not in SHOWN:
+            raise UsageError(f"unknown --intervals '{intervals}'", hint="robust or model")
         model = Model(load(scene))
         start = start_values(init, model.unknowns) if init else None  # errors before compiling
         run = dict(backend=backend, chains=chains, warmup=warmup, samples=samples, seed=seed,
                    target_accept=target_accept, dense_mass=dense_mass, outdir=out, force=force,
-                   resume=resume, **({"init": start} if start else {}))
+                   resume=resume, intervals=intervals, **({"init": start} if start else {}))
         try:
             if fallback:  # refine's fallback; its starts read the start values as a setting
                 from ..diagnose.rank import fit_with_fallback, start_setting
@@ -79,10 +86,12 @@ def _report(model, idata, backend: str) -> None:
     """The summary table and the fit's quality on stdout; warnings on stderr."""
     import json
 
+    from ..infer.intervals import describe
     from ..infer.output import fit_quality_lines, format_table, summary_rows, warnings_in_words
 
     rows = summary_rows(model, idata)
     typer.echo(format_table(rows))
+    typer.echo(describe(idata))
     if "fit_note" in idata.attrs:
         typer.echo(f"note: {idata.attrs['fit_note']}", err=True)
     quality = json.loads(idata.attrs["fit_quality"]) if "fit_quality" in idata.attrs else None
