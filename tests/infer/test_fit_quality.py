@@ -1,0 +1,104 @@
+"""Fit quality, printed and saved by every `infer`: the check's own numbers (residual RMS in
+noise units overall and per observable, worst window, verdict), and a warning in words where
+the fit is far from the data; the posterior pass runs in chunks with the same results."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+
+@pytest.fixture(scope="module")
+def good(projectile_model):
+    return projectile_model.infer(backend="map", chains=2, warmup=100, samples=20, seed=1,
+                                  progress=False)
+
+
+def _shifted(model, idata, name: str, delta: float):
+    """``idata``'s draws with the unconstrained coordinate ``name`` moved by ``delta``."""
+    from physdsl.infer.backends.map import coordinate_names
+    from physdsl.infer.base import Settings
+    from physdsl.infer.output import build_inference_data
+    from physdsl.infer.problem import model_problem
+    from numpyro.infer.util import unconstrain_fn
+    from jax.flatten_util import ravel_pytree
+
+    problem = model_problem(model)
+    post = idata.posterior
+    values = {u.name: np.asarray(post[u.name].values[0, 0]) for u in model.unknowns}
+    x = np.array(ravel_pytree(unconstrain_fn(model.prior_values, (), {}, values))[0])
+    x[coordinate_names(problem).index(name)] += delta
+    return build_inference_data(model, problem, x[None, None, :], {}, Settings())
+
+
+def test_fit_quality_is_the_checks_numbers(projectile_model, good):
+    from physdsl.diagnose.workflow import check_model
+    from physdsl.infer.output import fit_quality
+
+    q = fit_quality(projectile_model, good)
+    report = check_model(projectile_model, good)
+    assert q["rms_sigma"] == report.rms_sigma
+    assert q["observables"] == {"ball.position": report.observables[0].rms_sigma}
+    worst = max(report.observables[0].windows, key=lambda w: w.rms_sigma)
+    assert q["worst_window"]["rms_sigma"] == worst.rms_sigma
+    assert q["worst_window"]["label"] == worst.label
+    assert 0.5 < q["rms_sigma"] < 1.5 and q["consistent"] and q["warnings"] == []
+    (start,) = q["starts"]
+    assert start["observable"] == "ball.position" and start["sigma"] < 5
+
+
+def test_a_fit_far_from_the_data_is_said_to_describe_a_wrong_model(projectile_model, good):
+    from physdsl.infer.output import fit_quality, fit_quality_lines
+
+    off = _shifted(projectile_model, good, "ball.velocity[0]", 0.5)  # 0.5 m/s too fast
+    q = fit_quality(projectile_model, off)
+    assert q["rms_sigma"] > 3 and not q["consistent"]
+    (w,) = q["warnings"]
+    assert "far from the data" in w and "model that does not fit" in w
+    lines = fit_quality_lines(q)
+    assert lines[0].startswith("fit: residual RMS") and "ball.position" in lines[0]
+    assert lines[-1].startswith("  check: ") and q["verdict"] in lines[-1]
+
+
+def test_a_start_far_from_the_first_samples_is_flagged(projectile_model, good):
+    from dataclasses import replace
+
+    from physdsl.diagnose.workflow import observable_fits
+    from physdsl.infer.output import FAR_START, start_agreement
+
+    fits = observable_fits(projectile_model, good)
+    (near,) = start_agreement(projectile_model, fits)
+    moved = [replace(f, point=f.point + np.array([0.0, 0.0, 0.1])) for f in fits]  # 10 cm up
+    (far,) = start_agreement(projectile_model, moved)
+    assert near["sigma"] < FAR_START < far["sigma"]
+    assert far["fitted"].startswith("(") and far["fitted"].endswith(" m")
+
+
+def test_chunked_posterior_pass_equals_one_pass(projectile_model, good, monkeypatch):
+    from physdsl.infer import output
+    from physdsl.infer.problem import model_problem
+
+    problem = model_problem(projectile_model)
+    rng = np.random.default_rng(0)
+    centre = np.array([3.2, 0.4, 4.3, np.log(0.3)])  # velocity, log drag (the flat order)
+    flat = centre + rng.normal(0.0, 0.05, (20, problem.dim))
+    whole = output.posterior_pass(projectile_model, problem, flat)  # one padded chunk of 64
+    monkeypatch.setattr(output, "PASS_CHUNK", 7)  # three calls, the last padded
+    seen = []
+    parts = output.posterior_pass(projectile_model, problem, flat, on_chunk=seen.append)
+    assert seen == [7, 7, 6]
+    for a, b in zip(*(__import__("jax").tree_util.tree_leaves(t) for t in (whole, parts))):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-14)
+
+
+def test_infer_prints_and_saves_the_fit_quality(projectile_scene, cli, tmp_path):
+    out = tmp_path / "run"
+    code, stdout, err = cli("infer", projectile_scene, "-o", out, "--backend", "map",
+                            "--chains", "2", "--warmup", "100", "--samples", "20")
+    assert code == 0, err
+    assert "fit: residual RMS" in stdout and "check: " in stdout
+    for stage in ("compile", "optimise", "laplace", "sampling", "predictions", "fit quality"):
+        assert f"{stage}: done in" in err  # progress of every stage on stderr
+    q = json.loads((out / "run.json").read_text())["fit_quality"]
+    assert 0.5 < q["rms_sigma"] < 1.5 and q["verdict"]
