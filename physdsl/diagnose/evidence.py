@@ -8,7 +8,8 @@ the mode search already uses where the likelihood is least squares with known no
 a linear-Gaussian model), else central differences of the gradient (``laplace_sqrt``). Unlike
 ΔELPD it counts complexity: a strength the prior makes implausible, or one the data leave
 unconstrained, costs its Occam factor. Where the fit's Laplace step failed (a kink at the mode)
-or H is not positive definite, the evidence is ``None`` ("n/a"), never a wrong number.
+or H is not positive definite, or the mode search stopped where a Newton step would still gain
+more than ``MODE_SLACK`` (not a mode), the evidence is ``None`` ("n/a"), never a wrong number.
 """
 from __future__ import annotations
 
@@ -35,14 +36,28 @@ def laplace_log_evidence(model, idata=None, *, values: dict | None = None) -> fl
     gn = gauss_newton_fn(problem) if not noise_unknowns(model) else None
     if gn is not None:
         v, g, H = (np.asarray(a, dtype=float) for a in gn(jnp.asarray(x)))
-        return quadratic_log_evidence(float(v), g, H)
-    v, g = value_and_grad_fn(problem)(jnp.asarray(x))
+    else:
+        v, g = (np.asarray(a, dtype=float) for a in value_and_grad_fn(problem)(jnp.asarray(x)))
+        try:
+            S = laplace_sqrt(problem, x)  # S S^T = H^-1
+        except LaplaceError:
+            return None
+        H = np.linalg.inv(S @ S.T)
+    if not newton_gain(g, H) <= MODE_SLACK:
+        return None  # the mode search stopped short of a mode (a kink, an edge): no Laplace
+    return quadratic_log_evidence(float(v), g, H)
+
+
+MODE_SLACK = 1.0  # log-density units a Newton step may still gain at a point taken as the mode
+
+
+def newton_gain(g: np.ndarray, H: np.ndarray) -> float:
+    """½ gᵀH⁻¹g: what a Newton step would still gain (inf where H is not positive definite)."""
     try:
-        S = laplace_sqrt(problem, x)  # S S^T = H^-1
-    except LaplaceError:
-        return None
-    H = np.linalg.inv(S @ S.T)
-    return quadratic_log_evidence(float(v), np.asarray(g, dtype=float), H)
+        w = np.linalg.solve(np.linalg.cholesky(0.5 * (H + H.T)), g)
+    except np.linalg.LinAlgError:
+        return math.inf
+    return float(0.5 * w @ w) if np.all(np.isfinite(w)) else math.inf
 
 
 def quadratic_log_evidence(v: float, g: np.ndarray, H: np.ndarray) -> float | None:
