@@ -32,7 +32,7 @@ class Round:
 
 def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", chains: int = 2,
            warmup: int = 300, samples: int = 300, seed: int = 0, force: bool = False,
-           confirm_top: int = 2, revise=(), echo=print) -> list[Round]:
+           confirm_top: int = 2, revise=(), echo=print, progress: bool = False) -> list[Round]:
     """Fit, check, re-examine, diagnose and extend the scene until no addition, swap or drop
     improves the evidence; returns the rounds. ``revise``: effects of the user's scene
     (``effect@target``) to re-examine like those the loop adds."""
@@ -56,7 +56,7 @@ def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", cha
         model = Model(load(current))
         echo(f"round {k}: fitting {current} ({backend}, {chains} chains)")
         idata = fit_with_fallback(model, backend, chains=chains, warmup=warmup, samples=samples,
-                                  seed=seed, outdir=rdir / "fit", force=True, progress=False,
+                                  seed=seed, outdir=rdir / "fit", force=True, progress=progress,
                                   start=start_setting(start))
         if "fit_note" in idata.attrs:
             echo(f"round {k}: {idata.attrs['fit_note']}")
