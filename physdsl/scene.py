@@ -99,7 +99,8 @@ class Marker:
     name: str
     body: str
     position: Expr  # (3,) m, body frame
-    color: Expr | None = None  # (3,) RGB in [0, 1]
+    color: Expr | None = None  # (3,) RGB in [0, 1]; a marker with a colour is drawn as a dot
+    radius: Expr | None = None  # m, the drawn dot's radius
     span: Span | None = None
 
 

@@ -4,7 +4,8 @@ Sizes, colours, materials, cameras and the light are the Scene's expressions eva
 ``physdsl.expr.evaluate``, so any of them may be unknowns; poses come from a rollout,
 interpolated at the frame times (linear for positions, normalised linear for quaternions).
 Body kinds are static (``scene_kinds``), so ``render(..., kinds=scene_kinds(scene))`` takes the
-fast path. Mesh bodies are not drawn (the renderer has no meshes).
+fast path. Mesh bodies are not drawn (the renderer has no meshes). A marker with a colour is
+drawn as a dot (a sphere of its ``radius``, default ``DOT_RADIUS``) after the bodies.
 """
 from __future__ import annotations
 
@@ -15,11 +16,12 @@ import numpy as np
 from ..errors import ModelError
 from ..expr import evaluate
 from ..observe import trajectory
-from ..scene import Body, Scene
+from ..scene import Body, Marker, Scene
 from .types import KIND_CODES, Camera, Light, Objects, make_light
 
 DEFAULT_COLOR = (0.5, 0.5, 0.5)  # MuJoCo's default geom colour
 DEFAULT_BACKGROUND = (0.0, 0.0, 0.0)
+DOT_RADIUS = 0.005  # m, a drawn marker's default radius
 
 
 def drawn_bodies(scene: Scene) -> tuple[Body, ...]:
@@ -27,9 +29,15 @@ def drawn_bodies(scene: Scene) -> tuple[Body, ...]:
     return tuple(b for b in scene.bodies if b.shape is not None and b.shape.kind in KIND_CODES)
 
 
+def drawn_markers(scene: Scene) -> tuple[Marker, ...]:
+    """Markers the renderer draws as dots: those given a colour."""
+    return tuple(m for m in scene.markers if m.color is not None)
+
+
 def scene_kinds(scene: Scene) -> tuple[int, ...]:
-    """Static kind codes of ``drawn_bodies`` (for ``render(..., kinds=...)``)."""
-    return tuple(KIND_CODES[b.shape.kind] for b in drawn_bodies(scene))
+    """Static kind codes of ``drawn_bodies`` then ``drawn_markers`` (for ``render(..., kinds=...)``)."""
+    return (tuple(KIND_CODES[b.shape.kind] for b in drawn_bodies(scene))
+            + (KIND_CODES["sphere"],) * len(drawn_markers(scene)))
 
 
 def _size(body: Body, values):
@@ -82,8 +90,8 @@ def scene_objects(scene: Scene, simulator, rollout, values, times) -> Objects:
     def frames(a):
         return jnp.broadcast_to(a, (n_frames,) + a.shape)
 
-    return Objects(
-        kind=frames(jnp.asarray(scene_kinds(scene), dtype=jnp.int32)),
+    objects = Objects(
+        kind=frames(jnp.asarray(scene_kinds(scene)[:len(bodies)], dtype=jnp.int32)),
         pos=pos, quat=quat,
         size=frames(per_body(lambda b: _size(b, values))),
         color=frames(per_body(lambda b: jnp.broadcast_to(
@@ -91,6 +99,37 @@ def scene_objects(scene: Scene, simulator, rollout, values, times) -> Objects:
         ambient=frames(per_body(lambda b: _scalar(b.material.ambient, values, 1.0))),
         diffuse=frames(per_body(lambda b: _scalar(b.material.diffuse, values, 1.0))),
         visible=frames(jnp.ones(len(bodies))),
+    )
+    dots = _marker_dots(scene, simulator, rollout, values, times)
+    if dots is None:
+        return objects
+    return Objects(*(jnp.concatenate([a, b], axis=1) for a, b in zip(objects, dots)))
+
+
+def _marker_dots(scene: Scene, simulator, rollout, values, times) -> Objects | None:
+    """The drawn markers as small spheres at each frame time (None: no marker is drawn)."""
+    markers = drawn_markers(scene)
+    if not markers:
+        return None
+    interp = trajectory.interpolation(np.asarray(simulator.times), np.asarray(times, dtype=float))
+    idx = np.array([simulator.marker_names.index(m.name) for m in markers])
+    track = rollout.marker_pos[:, idx]
+    w = jnp.asarray(interp.w)[:, None, None]
+    pos = (1 - w) * track[interp.lo] + w * track[interp.hi]
+    n_frames, n = pos.shape[0], len(markers)
+
+    def per_marker(fn):
+        return jnp.broadcast_to(jnp.stack([jnp.asarray(fn(m), dtype=float) for m in markers]),
+                                (n_frames, n) + jnp.shape(fn(markers[0])))
+
+    zero = jnp.zeros(())
+    return Objects(
+        kind=jnp.full((n_frames, n), KIND_CODES["sphere"], dtype=jnp.int32),
+        pos=pos, quat=jnp.broadcast_to(jnp.array([1.0, 0.0, 0.0, 0.0]), (n_frames, n, 4)),
+        size=per_marker(lambda m: jnp.stack([_scalar(m.radius, values, DOT_RADIUS), zero, zero])),
+        color=per_marker(lambda m: jnp.broadcast_to(_scalar(m.color, values, DEFAULT_COLOR), (3,))),
+        ambient=jnp.ones((n_frames, n)), diffuse=jnp.ones((n_frames, n)),
+        visible=jnp.ones((n_frames, n)),
     )
 
 

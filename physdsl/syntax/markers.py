@@ -24,7 +24,7 @@ def build_marker(r, item: ast.MarkerItem) -> Marker:
         raise r.err(PhysNameError, msg, item.span, "a marker sits on a body: "
                     f"marker {n} on BODY {{ position: (0, 0, 0) m }}")
     position = r.opt(f"{n}.position") or E.Const((0.0, 0.0, 0.0))
-    return Marker(n, body, position, r.opt(f"{n}.color"), item.span)
+    return Marker(n, body, position, r.opt(f"{n}.color"), r.opt(f"{n}.radius"), item.span)
 
 
 def _did_you_mean(name: str, options) -> str:

@@ -66,7 +66,8 @@ BODY_FIELDS = {
     "color": spec(DIMLESS, (3,)),
 }
 BODY_FLAGS = {"fixed", "collide"}
-MARKER_FIELDS = {"position": spec(LENGTH, (3,)), "color": spec(DIMLESS, (3,))}
+MARKER_FIELDS = {"position": spec(LENGTH, (3,)), "color": spec(DIMLESS, (3,)),
+                 "radius": spec(LENGTH)}
 GROUND_FIELDS = {"normal": spec(DIMLESS, (3,)), "point": spec(LENGTH, (3,)),
                  "color": spec(DIMLESS, (3,))}
 MATERIAL_FIELDS = {"ambient": spec(DIMLESS), "diffuse": spec(DIMLESS)}

@@ -74,3 +74,28 @@ def test_a_marker_track_fits_the_release_angle(tip_data):
     a0 = np.asarray(post["a0"]).ravel()
     assert abs(np.median(a0) - np.deg2rad(30)) < 3 * np.std(a0) + 1e-4
     assert np.std(a0) < np.deg2rad(0.5)
+
+
+def test_a_coloured_marker_is_drawn_as_a_dot():
+    from physdsl.render.camera import project
+    from physdsl.render.scene import render_frames, scene_camera
+
+    camera = '  camera cam { position: (0, -2, 0.75) m  look_at: (0, 0, 0.75) m  size: (64, 64) }'
+    plain = loads(PENDULUM.replace("ANGLE", "0 deg") % camera)
+    dotted = loads(PENDULUM.replace("ANGLE", "0 deg").replace(
+        "marker tip on pole { position: (0.1, 0.02, -0.25) m }",
+        "marker tip on pole { position: (0.1, 0.02, -0.25) m  color: (1, 0, 0)  radius: 2 cm }")
+        % camera)
+    images = []
+    for scene in (plain, dotted):
+        model = compile_scene(scene)
+        rollout = model.simulate({})
+        images.append(np.asarray(render_frames(scene, model.simulator, rollout, {}, "cam", [0.0]))[0])
+    cam, _ = scene_camera(dotted, "cam", {})
+    u, v = np.asarray(project(cam, np.array([0.1, 0.02, 0.5]))[0])  # the tip at angle 0
+    pixel = [int(round(float(v))), int(round(float(u)))]
+    assert np.allclose(images[0][pixel[0], pixel[1]], 0.0, atol=0.05)  # background: no dot
+    red = images[1][pixel[0], pixel[1]]  # lit from above, seen from the side: ambient red
+    assert red[0] > 0.25 and red[0] > 10 * max(red[1], red[2])
+    changed = np.argwhere(np.abs(images[1] - images[0]).max(axis=-1) > 1e-3)
+    assert np.abs(changed - pixel).max() <= 5  # the dot (soft edges) changes nothing else
