@@ -229,3 +229,17 @@ def annotate(ex: PhysError) -> PhysError:
     if len(out) == len(errors) and not isinstance(ex, PhysErrors):
         return ex
     return out[0] if len(out) == 1 else PhysErrors(out)
+
+
+def unroll_module(module: ast.Module) -> ast.Module:
+    """``module`` with its scene's loops unrolled and aliases applied, for tools that edit a
+    scene's text item by item (the printed result is the scene written out by hand); raises
+    the mistakes ``expand`` finds."""
+    scene = module.scene
+    if scene is None:
+        return module
+    errors: list[PhysError] = []
+    flat = expand(scene, errors)
+    if errors:
+        raise annotate(errors[0] if len(errors) == 1 else PhysErrors(errors))
+    return dataclasses.replace(module, items=tuple(flat if i is scene else i for i in module.items))

@@ -135,3 +135,12 @@ def test_the_chain_example_rolls_out_as_the_explicit_chain():
     for field in ("body_pos", "body_quat", "body_vel", "joint_pos", "contact_force"):
         np.testing.assert_allclose(np.asarray(getattr(a, field)), np.asarray(getattr(b, field)),
                                    rtol=1e-12, atol=1e-12)
+
+
+def test_an_unrolled_module_prints_as_the_hand_written_scene():
+    from physdsl.syntax.loops import unroll_module
+    from physdsl.syntax.printer import format_module
+
+    text = format_module(unroll_module(parse(LOOPED)))
+    assert "for " not in text and "alias" not in text and "{i" not in text
+    assert structure_key(loads(text)) == structure_key(loads(EXPLICIT))
