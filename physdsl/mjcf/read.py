@@ -54,10 +54,8 @@ class _Reader:
         self.joint_name: dict[int, str] = {}
         self.joint_kind: dict[int, str] = {}
         self.geom_body: dict[int, str] = {}  # geom -> physdsl body carrying its shape
-        self.fixed: set[str] = set()
-        self.joined: set[frozenset] = set()
-        self.no_collide: set[str] = set()
         self.key = self._key(key)
+        self.geom_pairs = self._geom_pairs()
         self.d = self._reference()
 
     # ---- state -----------------------------------------------------------------------------
@@ -151,8 +149,7 @@ class _Reader:
     def _collides(self, g: int) -> bool:
         if self.m.geom_type[g] == self.mj.mjtGeom.mjGEOM_MESH:
             return False
-        return bool(self.m.geom_contype[g] or self.m.geom_conaffinity[g]) or \
-            any(g in (self.m.pair_geom1[p], self.m.pair_geom2[p]) for p in range(self.m.npair))
+        return any(g in (g1, g2) for g1, g2, _ in self.geom_pairs)
 
     def _pose_fields(self, pos, mat):
         q = _mat_quat(self.mj, mat)
@@ -195,7 +192,6 @@ class _Reader:
                       self._color(g)]
                 if not self._collides(g):
                     fs.append(field("collide", ast.Name("false")))
-                    self.no_collide.add(name)
                 self.bodies.append(ast.BodyItem("ground", name, block(*fs)))
             else:
                 shape = self._shape(g)
@@ -205,9 +201,7 @@ class _Reader:
                       self._color(g), field("fixed", ast.Name("true"))]
                 if not self._collides(g):
                     fs.append(field("collide", ast.Name("false")))
-                    self.no_collide.add(name)
                 self.bodies.append(ast.BodyItem("body", name, block(*fs)))
-            self.fixed.add(name)
             self.geom_body[g] = name
 
     def moving_body(self, b: int):
@@ -233,7 +227,6 @@ class _Reader:
             self.geom_body[geoms[0]] = name
             if not self._collides(geoms[0]):
                 fs.append(field("collide", ast.Name("false")))
-                self.no_collide.add(name)
         self.bodies.append(ast.BodyItem("body", name, block(*fs)))
         if own is None:
             for g in geoms:
@@ -252,11 +245,9 @@ class _Reader:
               *self._pose_fields(d.geom_xpos[g], d.geom_xmat[g]), self._color(g)]
         if not self._collides(g):
             fs.append(field("collide", ast.Name("false")))
-            self.no_collide.add(name)
         self.bodies.append(ast.BodyItem("body", name, block(*fs)))
         weld = self.names.make(f"{name}_weld", "weld")
         self.joints.append(ast.JointItem(weld, "fixed", owner, name))
-        self.joined.add(frozenset((owner, name)))
         self.geom_body[g] = name
 
     def _body_joints(self, b: int) -> list[int]:
@@ -284,7 +275,6 @@ class _Reader:
         if not js:
             weld = self.names.make(f"{child}_weld", "weld")
             self.joints.append(ast.JointItem(weld, "fixed", parent, child))
-            self.joined.add(frozenset((parent, child)))
             return
         if m.jnt_type[js[0]] == mj.mjtJoint.mjJNT_FREE:
             return  # a body without a joint moves freely
@@ -310,7 +300,6 @@ class _Reader:
             self.notes.add(f"joint '{name}': a free joint below another body is not expressible")
             return
         self.joint_name[j], self.joint_kind[j] = name, kind
-        self.joined.add(frozenset((parent, child)))
         u = _units(kind)
         qa, va = m.jnt_qposadr[j], m.jnt_dofadr[j]
         fs = []
@@ -429,10 +418,11 @@ class _Reader:
             if m.actuator_forcelimited[a]:
                 self.notes.add(f"actuator '{label}': forcerange clamping is not expressible")
 
-    def mujoco_pairs(self) -> dict[frozenset, float]:
-        """Pairs of physdsl bodies MuJoCo tests for contact, with the friction it would use."""
+    def _geom_pairs(self) -> list[tuple[int, int, float]]:
+        """Geom pairs MuJoCo tests for contact (its filters: same weld body, parent, contype/
+        conaffinity, exclude; plus explicit pairs), with the friction it would use."""
         m = self.m
-        out: dict[frozenset, float] = {}
+        out = []
         weld, parent = m.body_weldid, m.body_parentid
         filterparent = not (m.opt.disableflags & self.mj.mjtDisableBit.mjDSBL_FILTERPARENT)
         excluded = {int(s) for s in m.exclude_signature}
@@ -449,9 +439,16 @@ class _Reader:
                     continue
                 if ((min(b1, b2) << 16) + max(b1, b2)) in excluded:
                     continue
-                self._add_pair(out, g1, g2, max(m.geom_friction[g1][0], m.geom_friction[g2][0]))
+                out.append((g1, g2, float(max(m.geom_friction[g1][0], m.geom_friction[g2][0]))))
         for p in range(m.npair):
-            self._add_pair(out, m.pair_geom1[p], m.pair_geom2[p], m.pair_friction[p][0])
+            out.append((int(m.pair_geom1[p]), int(m.pair_geom2[p]), float(m.pair_friction[p][0])))
+        return out
+
+    def mujoco_pairs(self) -> dict[frozenset, float]:
+        """Pairs of physdsl bodies MuJoCo tests for contact, with the friction it would use."""
+        out: dict[frozenset, float] = {}
+        for g1, g2, mu in self.geom_pairs:
+            self._add_pair(out, g1, g2, mu)
         return out
 
     def _add_pair(self, out, g1, g2, mu):
@@ -460,29 +457,44 @@ class _Reader:
             return
         out[frozenset((a, b))] = float(mu)
 
-    def physdsl_pairs(self) -> list[tuple[str, str]]:
-        """physdsl's rule: shaped bodies, not both fixed, not joined, neither ``collide: false``."""
-        shaped = [n for n in dict.fromkeys(self.geom_body.values()) if n not in self.no_collide]
-        return [(a, b) for i, a in enumerate(shaped) for b in shaped[i + 1:]
-                if not (a in self.fixed and b in self.fixed) and frozenset((a, b)) not in self.joined]
+    def physdsl_pairs(self, contacts=()) -> set[frozenset]:
+        """The pairs physdsl tests in the scene read so far plus ``contacts``: the language's
+        own rule, by resolving the text (controls left out: their file may not exist yet;
+        mesh files written to a temporary folder)."""
+        import tempfile
+        from pathlib import Path
+
+        from ..syntax import loads
+
+        items = (ast.WorldItem(block()), *self.bodies, *self.joints, *contacts)
+        text = format_module(ast.Module((ast.SceneDecl("pairs", items),)))
+        with tempfile.TemporaryDirectory() as tmp:
+            for name, content in self.files.items():
+                (Path(tmp) / name).write_text(content)
+            scene = loads(text, "<imported scene>", tmp)
+        return {frozenset(p) for p in scene.contact_pairs}
 
     def contact_items(self):
+        """``contact`` statements for the pairs MuJoCo tests (friction as MuJoCo combines it,
+        restitution 0); pairs only one side tests are listed."""
         mj_pairs = self.mujoco_pairs()
-        ours = self.physdsl_pairs()
-        for a, b in ours:
-            mu = mj_pairs.get(frozenset((a, b)))
-            if mu is None:
-                self.notes.add(f"contact {a}, {b}: physdsl tests this pair, MuJoCo's contype/"
-                               "conaffinity, parent filter or exclude does not")
-                continue
+        default = self.physdsl_pairs()
+        for pair in sorted(default - set(mj_pairs), key=sorted):
+            a, b = sorted(pair)
+            self.notes.add(f"contact {a}, {b}: physdsl tests this pair, MuJoCo's contype/"
+                           "conaffinity, parent filter or exclude does not")
+        for pair, mu in mj_pairs.items():
+            a, b = sorted(pair)
             fs = ([field("friction", quantity(mu))] if mu > 0 else []) + \
                 [field("restitution", quantity(0.0))]
             self.contacts.append(ast.ContactItem(a, b, block(*fs)))
-        for pair in mj_pairs:
-            if tuple(pair) not in ours and tuple(pair)[::-1] not in ours:
+        if set(mj_pairs) - default:  # a contact statement may switch a pair on; check
+            tested = self.physdsl_pairs(self.contacts)
+            for pair in set(mj_pairs) - tested:
                 a, b = sorted(pair)
                 self.notes.add(f"contact {a}, {b}: MuJoCo tests this pair, physdsl does not "
-                               "(bodies joined by a joint never collide in physdsl)")
+                               "(physdsl's contact rules leave it out)")
+                self.contacts = [c for c in self.contacts if {c.a, c.b} != {a, b}]
         if self.contacts:
             self.notes.add("contacts: MuJoCo's soft contacts (solref, solimp, condim, torsional "
                            "and rolling friction) become hard contacts with Coulomb friction and "
