@@ -28,6 +28,9 @@ def lint_files(files: list[Path], quiet: bool = False) -> int:
         out.print(f"{f}: ok: scene '{scene.name}', {len(scene.bodies)} bodies, {len(scene.joints)} "
                   f"joints, {len(scene.effects)} effects, {len(scene.observations)} observations, "
                   f"{len(scene.unknowns)} unknowns", markup=False)
+        note = integrator_note(scene)
+        if note:
+            out.print(f"{f}: note: {note}", markup=False)
         if quiet or not scene.unknowns:
             continue
         table = Table(title=f"unknowns of {scene.name}", title_justify="left")
@@ -37,6 +40,17 @@ def lint_files(files: list[Path], quiet: bool = False) -> int:
             table.add_row(*row)
         out.print(table)
     return code
+
+
+def integrator_note(scene) -> str | None:
+    """Where the stepping differs from the chosen integrator (``physics.integrate.step``), in words."""
+    if not scene.contact_pairs or scene.world.integrator == "semi_implicit_euler":
+        return None
+    how = ("the LCP contact step (velocity level, first order)" if scene.world.contact_model == "lcp"
+           else "semi-implicit Euler with the penalty forces")
+    return (f"integrator {scene.world.integrator} between contacts; a step with a contact within "
+            f"reach ({len(scene.contact_pairs)} contact pair{'s' * (len(scene.contact_pairs) > 1)}) "
+            f"is {how}")
 
 
 def register(app: typer.Typer) -> None:

@@ -5,11 +5,12 @@ path (``free.py``); others tree kinematics and joint-space dynamics (``dynamics.
 needs the mass matrix (CRBA, or block-diagonal for free bodies) and runs only when some
 candidate is within the contact margin or closes its gap within the step (``lax.cond``; under
 ``vmap`` both branches run).
-RK4 is only used without contacts (contacts are non-smooth, so scenes with contact candidates
-fall back to semi-implicit Euler; ``Simulator.integrator`` says which one runs). In LCP scenes,
-steps with no contact near advance positions by the mean of the old and new velocity (exact
-under constant forces: a ball's flight between bounces has no O(h) lag), steps with contacts
-by the contact step's position velocity (time-of-impact split, see ``contact.step``).
+A scene with contacts keeps its integrator between contacts: each step with no contact near
+is the integrator's step without contact forces (RK4; or semi-implicit Euler with positions
+by the mean of the old and new velocity, exact under constant forces), a step with a
+contact near is the velocity-level contact step (LCP with its time-of-impact split, see
+``contact.step``; compliant: semi-implicit Euler with the penalty forces). So a contact that
+never comes near leaves an RK4 rollout exactly as it is without the contact pair.
 """
 from __future__ import annotations
 
@@ -85,61 +86,110 @@ def joint_mass_matrix(model: Model, prm: dict, kin):
 
 
 def _accel(model, prm, q, v, state, t, t_step):
-    """Accelerations with compliant contact forces if any; and the contact outputs."""
-    kin = kinematics(model, prm, q, v, with_jac=bool(model.ncon))
-    load = applied_load(model, prm, kin, state, t, t_step)
-    cf, cn = state.contact_force, state.contact_normal
-    tau = None
-    if model.ncon:
-        con = cs.detect_all(model, prm, kin)
-        M = None if con.inv_mass is not None else joint_mass_matrix(model, prm, kin)
-        tau, cf = cs.compliant_tau(model, con, M, v)
-        cn = con.normal
-    return accel(model, prm, kin, load, tau), cf, cn
+    """Accelerations at (q, v) under the applied loads alone (no contact forces)."""
+    kin = kinematics(model, prm, q, v)
+    return accel(model, prm, kin, applied_load(model, prm, kin, state, t, t_step))
 
 
-def _lcp_step(model, prm, state, t, h):
+def _flight(model, prm, state, t, h, a1, v_free):
+    """The step of the scene's integrator with no contact near: RK4 (its first stage ``a1`` given),
+    or, under semi-implicit Euler, positions by the trapezoid of v and ``v_free`` (exact under
+    constant forces: a ball's flight between bounces has no O(h) lag)."""
+    if model.integrator == "rk4":
+        return _rk4(model, prm, state, t, h, a1)
+    return state._replace(q=integrate_q(model, state.q, 0.5 * (state.v + v_free), h), v=v_free)
+
+
+def _either(near, contact, apart, forward_only: bool):
+    """``contact()`` where ``near``, else ``apart()``: ``lax.cond``; with ``forward_only``, a
+    while loop of at most one trip over ``contact`` after ``apart``. Under ``vmap`` (chains) a
+    cond with a batched predicate runs both branches in every step; the loop runs ``contact``
+    only in the steps where some member has a contact near, so a contact that never comes near
+    costs its detection alone. A while loop has no reverse-mode derivative: only for rollouts
+    differentiated in forward mode (``simulator.forward_mode``)."""
+    if not forward_only:
+        return jax.lax.cond(near, lambda _: contact(), lambda _: apart(), None)
+    _, out = jax.lax.while_loop(lambda c: c[0], lambda c: (jnp.zeros_like(near), contact()),
+                                (near, apart()))
+    return out
+
+
+def _lcp_step(model, prm, state, t, h, forward_only=False):
+    """The LCP contact step where some candidate is within reach (``cs.closing_within``), else
+    the scene's integrator without contact forces (``_flight``), by ``_either``."""
     q, v = state.q, state.v
     kin = kinematics(model, prm, q, v, with_jac=True)
     load = applied_load(model, prm, kin, state, t, t)
-    v_free = v + h * accel(model, prm, kin, load)
+    a = accel(model, prm, kin, load)
+    v_free = v + h * a
     con = cs.closing_within(cs.detect_all(model, prm, kin, v), v_free, h)
 
-    def contact(_):
-        return cs.lcp_velocity(model, con, joint_mass_matrix(model, prm, kin), v, v_free, h)
+    def contact():
+        v_next, v_position, cf = cs.lcp_velocity(model, con, joint_mass_matrix(model, prm, kin),
+                                                 v, v_free, h)
+        return State(integrate_q(model, q, v_position, h), v_next, cf, con.normal)
 
-    def apart(_):  # free flight: positions by the trapezoid, exact under constant forces
-        return v_free, 0.5 * (v + v_free), jnp.zeros(model.ncon, v.dtype)
+    def apart():
+        s = _flight(model, prm, state, t, h, a, v_free)
+        return State(s.q, s.v, jnp.zeros(model.ncon, v.dtype), con.normal)
 
-    v_next, v_position, cf = jax.lax.cond(jnp.any(con.active), contact, apart, None)
-    return State(integrate_q(model, q, v_position, h), v_next, cf, con.normal)
+    return _either(jnp.any(con.active), contact, apart, forward_only)
 
 
-def step(model: Model, prm: dict, state: State, t, h):
-    """Advance ``state`` from time t by h (one substep)."""
-    if model.ncon and model.contact_model == "lcp":
-        return _lcp_step(model, prm, state, t, h)
-    if model.integrator == "rk4" and not model.ncon:
+def _compliant_step(model, prm, state, t, h, forward_only=False):
+    """Semi-implicit Euler with penalty contact forces where some candidate is within the
+    contact margin; else (RK4 scenes) RK4 without contact forces, which are zero there."""
+    q, v = state.q, state.v
+    kin = kinematics(model, prm, q, v, with_jac=True)
+    load = applied_load(model, prm, kin, state, t, t)
+    con = cs.detect_all(model, prm, kin)
+
+    def contact():
+        M = None if con.inv_mass is not None else joint_mass_matrix(model, prm, kin)
+        tau, cf = cs.compliant_tau(model, con, M, v)
+        v_next = v + h * accel(model, prm, kin, load, tau)
+        return State(integrate_q(model, q, v_next, h), v_next, cf, con.normal)
+
+    if model.integrator != "rk4":
+        return contact()
+
+    def apart():
+        s = _rk4(model, prm, state, t, h, accel(model, prm, kin, load))
+        return State(s.q, s.v, jnp.zeros(model.ncon, v.dtype), con.normal)
+
+    return _either(jnp.any(con.active), contact, apart, forward_only)
+
+
+def step(model: Model, prm: dict, state: State, t, h, forward_only: bool = False):
+    """Advance ``state`` from time t by h (one substep); ``forward_only``: the rollout is
+    differentiated in forward mode alone (contact steps skipped under vmap, ``_either``)."""
+    if model.ncon:
+        if model.contact_model == "lcp":
+            return _lcp_step(model, prm, state, t, h, forward_only)
+        return _compliant_step(model, prm, state, t, h, forward_only)
+    if model.integrator == "rk4":
         return _rk4(model, prm, state, t, h)
-    a, cf, cn = _accel(model, prm, state.q, state.v, state, t, t)
-    v_next = state.v + h * a
-    return State(integrate_q(model, state.q, v_next, h), v_next, cf, cn)
+    v_next = state.v + h * _accel(model, prm, state.q, state.v, state, t, t)
+    return state._replace(q=integrate_q(model, state.q, v_next, h), v=v_next)
 
 
-def _rk4(model: Model, prm: dict, state: State, t, h):
-    """Classic RK4 on (q, v), positions advanced on the manifold by stage velocities (as MuJoCo).
+def _rk4(model: Model, prm: dict, state: State, t, h, a1=None):
+    """Classic RK4 on (q, v), positions advanced on the manifold by stage velocities (as MuJoCo);
+    contact forces take no part (``step`` calls it only with no contact near).
 
     Stage i evaluates a_i at (q (+) c_i h v_{i-1}, v + c_i h a_{i-1}); the four stages are
-    unrolled (an inner scan compiles no faster and costs loop overhead in every step).
+    unrolled (an inner scan compiles no faster and costs loop overhead in every step). ``a1``:
+    the first stage when the caller has it already.
     """
     q, v = state.q, state.v
-    a1, _, _ = _accel(model, prm, q, v, state, t, t)
+    if a1 is None:
+        a1 = _accel(model, prm, q, v, state, t, t)
     v2 = v + 0.5 * h * a1
-    a2, _, _ = _accel(model, prm, integrate_q(model, q, v, 0.5 * h), v2, state, t + 0.5 * h, t)
+    a2 = _accel(model, prm, integrate_q(model, q, v, 0.5 * h), v2, state, t + 0.5 * h, t)
     v3 = v + 0.5 * h * a2
-    a3, _, _ = _accel(model, prm, integrate_q(model, q, v2, 0.5 * h), v3, state, t + 0.5 * h, t)
+    a3 = _accel(model, prm, integrate_q(model, q, v2, 0.5 * h), v3, state, t + 0.5 * h, t)
     v4 = v + h * a3
-    a4, _, _ = _accel(model, prm, integrate_q(model, q, v3, h), v4, state, t + h, t)
+    a4 = _accel(model, prm, integrate_q(model, q, v3, h), v4, state, t + h, t)
     v_avg = (v + 2.0 * v2 + 2.0 * v3 + v4) / 6.0
     a_avg = (a1 + 2.0 * a2 + 2.0 * a3 + a4) / 6.0
     return State(integrate_q(model, q, v_avg, h), v + h * a_avg, state.contact_force,

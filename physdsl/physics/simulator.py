@@ -10,7 +10,6 @@ trajectory use forward mode for few unknowns (``forward.forward_mode``), else re
 """
 from __future__ import annotations
 
-import warnings
 from typing import NamedTuple
 
 import jax
@@ -71,11 +70,7 @@ class Simulator:
         self.joint_names = model.joint_names
         n = model.nsteps
         self.times = np.arange(n + 1) * model.dt
-        self.integrator = model.integrator
-        if model.integrator == "rk4" and model.ncon:
-            self.integrator = "semi_implicit_euler"
-            warnings.warn(f"scene '{scene.name}' has contacts: RK4 falls back to semi-implicit Euler",
-                          stacklevel=3)
+        self.integrator = model.integrator  # between contacts (``integrate.step``)
         self.trace_count = 0
         self._jit = jax.jit(self._simulate, static_argnums=1)
 
@@ -91,7 +86,9 @@ class Simulator:
         C = model.ncon
         s0 = State(prm["q0"].astype(dtype), prm["v0"].astype(dtype), jnp.zeros(C, dtype),
                    jnp.zeros((C, 3), dtype))
-        traj = self._scan(lambda s, t, h: step(model, prm, s, t, h), s0, checkpoint)
+        # not checkpointed: differentiated in forward mode alone (``integrate._either``)
+        traj = self._scan(lambda s, t, h: step(model, prm, s, t, h, not checkpoint), s0,
+                          checkpoint)
         return traj.q, traj.v, traj.contact_force
 
     def _translation(self, prm: dict, checkpoint: bool) -> central.Translation:

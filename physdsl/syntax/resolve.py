@@ -19,7 +19,7 @@ from ..errors import (DataError, PhysError, PhysErrors, PhysNameError, PhysStruc
                       PhysTypeError, PhysUnitError, Span)
 from ..scene import (DH, Body, Camera, EffectDecl, EffectParam, EffectUse, Joint, Light, Material,
                      Noise, Prior, Scene, Shape, Unknown, World)
-from . import ast, dists
+from . import ast, collide, dists
 from .data import read_control, read_image_times, read_observation
 from .library import load_library
 from .loops import annotate, expand, place
@@ -844,7 +844,7 @@ class Resolver:
         light = self.collect(self.build_light, lights[0]) if lights else None
         for extra in lights[1:]:
             self.errors.append(self.err(PhysStructureError, "a scene has one light", extra.span))
-        pairs = self.contact_pairs(bodies, joints)
+        pairs = self.contact_pairs(bodies, joints, scene.items)
         self.pair_order = {frozenset(p): p for p in pairs}
         effects: list[EffectUse] = []
         keys: dict[str, Span | None] = {}
@@ -1099,18 +1099,13 @@ class Resolver:
                      self.opt("light.ambient") or E.Const(0.3),
                      self.opt("light.diffuse") or E.Const(0.7))
 
-    def contact_pairs(self, bodies: list[Body], joints: list[Joint]) -> list[tuple[str, str]]:
-        joined = {frozenset((j.parent, j.child)) for j in joints}
+    def contact_pairs(self, bodies: list[Body], joints: list[Joint],
+                      items=()) -> list[tuple[str, str]]:
+        """Default pairs (``collide.contact_pairs``); ``contact a, b`` items switch theirs on."""
         off = {n for n, fs in getattr(self, "body_fields", {}).items()
                if not self.flag(fs, "collide", True)}
-        shaped = [b for b in bodies if b.shape is not None and b.name not in off]
-        pairs = []
-        for i, a in enumerate(shaped):
-            for b in shaped[i + 1:]:
-                if a.fixed and b.fixed or frozenset((a.name, b.name)) in joined:
-                    continue
-                pairs.append((b.name, a.name) if b.fixed and not a.fixed else (a.name, b.name))
-        return pairs
+        explicit = {frozenset((i.a, i.b)) for i in items if isinstance(i, ast.ContactItem)}
+        return collide.contact_pairs(bodies, joints, off, explicit)
 
     # ---- effects -----------------------------------------------------------------------------
     def target_kind(self, target: tuple[str, ...], span) -> str:
