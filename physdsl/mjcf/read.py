@@ -309,9 +309,9 @@ class _Reader:
             fs.append(field("anchor", quantity(d.xanchor[j], "m")))
         kq, kv = self._key_q(j)
         if kind == "ball":
-            if kq is not None and not np.allclose(kq[:4], (1, 0, 0, 0)):
-                self.notes.add(f"joint '{name}': the keyframe's ball orientation is not imported "
-                               "(the joint starts at its reference pose)")
+            if kq is not None and (not np.allclose(kq[:4], (1, 0, 0, 0)) or np.any(kv[:3])):
+                self.notes.add(f"joint '{name}': the keyframe's ball orientation and velocity are "
+                               "not imported (the joint starts at rest in its reference pose)")
         else:
             ref = m.qpos0[qa]
             if abs(ref) > 0:
