@@ -157,8 +157,9 @@ def reexamine(current: Judged, revisable: list[Candidate], echo=None) -> tuple[A
                 wins.append(Action("dropped" if alt is None else "swapped", cand, alt, text, new, c))
     if not wins:
         return None, lines
+    # most evidence first; where it is n/a, a drop before a swap (fewer parameters), then ΔELPD
     best = max(wins, key=lambda a: (a.comparison.d_log_z if a.comparison.d_log_z is not None
-                                    else -math.inf, a.comparison.d_elpd))
+                                    else -math.inf, a.kind == "dropped", a.comparison.d_elpd))
     return best, lines
 
 

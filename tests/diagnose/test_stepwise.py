@@ -135,7 +135,7 @@ def test_the_loop_swaps_a_wrong_drag_law(steep, tmp_path):
     folder, naive = steep
     scene = _start(folder, naive, "linear_drag")
     rounds = refine(scene, tmp_path / "out", max_rounds=1, warmup=100, samples=64,
-                    revise=("linear_drag@ball",), echo=lambda *_: None)
+                    revise=("linear_drag@ball",), echo=print)
     r0, r1 = rounds
     assert r0.action is None and r0.added is None
     assert r1.action == "swapped", [r.verdict for r in rounds]
@@ -154,15 +154,19 @@ def test_the_loop_drops_an_effect_whose_evidence_vanished(steep, tmp_path):
     folder, naive = steep
     scene = _start(folder, naive, "quadratic_drag", "linear_drag")
     rounds = refine(scene, tmp_path / "out", max_rounds=1, warmup=100, samples=64,
-                    revise=("linear_drag@ball",), echo=lambda *_: None)
+                    revise=("linear_drag@ball",), echo=print)
     r1 = rounds[1]
     assert r1.action == "dropped", [r.verdict for r in rounds]
     assert r1.replaced == {"effect": "linear_drag", "target": "ball"} and r1.added is None
     from physdsl.syntax import load
 
     left = load(r1.scene)
-    assert {(e.effect, tuple(e.target)) for e in left.effects} == {("quadratic_drag", ("ball",))}
-    assert r1.log_evidence > rounds[0].log_evidence
+    assert {(e.effect, tuple(e.target)) for e in left.effects if e.effect != "gravity"} == \
+        {("quadratic_drag", ("ball",))}
+    # the scene with both drags can fit into a poor basin with no Laplace approximation
+    # (measured: 3.15σ, log Z n/a; ΔELPD then decides); where both evidences exist they agree
+    assert r1.consistent and r1.rms_sigma < rounds[0].rms_sigma
+    assert rounds[0].log_evidence is None or r1.log_evidence > rounds[0].log_evidence
 
 
 def test_strong_evidence_breaks_a_tie_in_elpd_not_a_clear_win():
