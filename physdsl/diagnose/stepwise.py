@@ -123,7 +123,7 @@ class Action:
 def reexamine(current: Judged, revisable: list[Candidate], echo=None) -> tuple[Action | None, list]:
     """Refit each of ``revisable`` (effects in ``current``'s scene) dropped and swapped for each
     alternative, given the rest of the scene; return the best winning action (by Δlog Z, then
-    ΔELPD) or None, and the lines describing every refit."""
+    a drop before a swap, then ΔELPD) or None, and the lines describing every refit."""
     from .rank import REFIT_FAILURES, quick_fit
     from .workflow import point_estimate
 
