@@ -363,11 +363,13 @@ def compile_scene(scene: Scene) -> Model:
     return Model(scene)
 
 
-def compile(source: str | Path) -> Model:  # noqa: A001 - the public name the design asks for
-    """Load a .phys file (a path) or text and compile it."""
+def compile(source: str | Path, allowed_paths=()) -> Model:  # noqa: A001 - the design's name
+    """Load a .phys file (a path) or text and compile it; its imports and data files must lie
+    in its folder tree (text: the working folder's), the stdlib or below ``allowed_paths``."""
     from . import syntax
 
     if isinstance(source, Path) or (isinstance(source, str) and "\n" not in source
                                      and source.endswith(".phys")):
-        return Model(syntax.load(source))
-    return Model(syntax.loads(source, filename="<string>", base_dir=Path.cwd()))
+        return Model(syntax.load(source, allowed_paths))
+    return Model(syntax.loads(source, filename="<string>", base_dir=Path.cwd(),
+                              allowed_paths=allowed_paths))

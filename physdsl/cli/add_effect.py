@@ -2,14 +2,18 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import List, Optional
 
 import typer
+
+from .paths import ALLOW_PATH
 
 
 def register(app: typer.Typer) -> None:
     @app.command("add-effect")
     def add_effect(
         scene: Path = typer.Argument(..., help="Scene file (.phys)."),
+        allow_path: Optional[List[Path]] = ALLOW_PATH,
         effect: str = typer.Argument(..., help="Library effect name, e.g. quadratic_drag."),
         on: str = typer.Argument(..., metavar="on", help="The word 'on'."),
         target: str = typer.Argument(..., help="Body, joint, 'a,b' pair or world."),

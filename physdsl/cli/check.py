@@ -2,14 +2,18 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import List, Optional
 
 import typer
+
+from .paths import ALLOW_PATH
 
 
 def register(app: typer.Typer) -> None:
     @app.command("check")
     def check(
         scene: Path = typer.Argument(..., help="Scene file (.phys) that was fitted."),
+        allow_path: Optional[List[Path]] = ALLOW_PATH,
         posterior: Path = typer.Option(..., "--posterior", "-p", help="Run folder of `physdsl infer`."),
         out: Path = typer.Option(..., "-o", "--out", help="Report folder."),
         windows: int = typer.Option(4, "--windows", min=1, help="Equal time windows per observable."),

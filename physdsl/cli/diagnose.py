@@ -2,14 +2,18 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import List, Optional
 
 import typer
+
+from .paths import ALLOW_PATH
 
 
 def register(app: typer.Typer) -> None:
     @app.command("diagnose")
     def diagnose(
         scene: Path = typer.Argument(..., help="Scene file (.phys) that was fitted."),
+        allow_path: Optional[List[Path]] = ALLOW_PATH,
         posterior: Path = typer.Option(..., "--posterior", "-p", help="Run folder of `physdsl infer`."),
         out: Path = typer.Option(..., "-o", "--out", help="Output folder."),
         confirm: int = typer.Option(2, "--confirm", min=0, help="Refit the best N candidates."),

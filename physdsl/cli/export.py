@@ -6,11 +6,14 @@ from typing import List, Optional
 
 import typer
 
+from .paths import ALLOW_PATH
+
 
 def register(app: typer.Typer) -> None:
     @app.command("export")
     def export_cmd(
         scene: Path = typer.Argument(..., help="The .phys scene the posterior was fitted to."),
+        allow_path: Optional[List[Path]] = ALLOW_PATH,
         posterior: Path = typer.Option(..., "--posterior", help="Run folder of `physdsl infer` (posterior.nc, run.json)."),
         out: Path = typer.Option(..., "-o", "--output", help="The proto-program to write (.phys)."),
         free: Optional[List[str]] = typer.Option(None, "--free", help="Unknown that keeps its original prior (repeatable)."),

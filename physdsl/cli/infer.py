@@ -3,14 +3,18 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import List, Optional
 
 import typer
+
+from .paths import ALLOW_PATH
 
 
 def register(app: typer.Typer) -> None:
     @app.command("infer")
     def infer(
         scene: Path = typer.Argument(..., help="Scene file (.phys) with observations."),
+        allow_path: Optional[List[Path]] = ALLOW_PATH,
         out: Path = typer.Option(..., "-o", "--out", help="Output folder for the run."),
         backend: str = typer.Option("nuts", "--backend", "-b",
                                     help="nuts | hmc | rmh | numpyro-nuts | map"),

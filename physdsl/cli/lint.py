@@ -3,10 +3,12 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import List, Optional
 
 import typer
 
 from ..errors import PhysError
+from .paths import ALLOW_PATH
 
 
 def lint_files(files: list[Path], quiet: bool = False) -> int:
@@ -55,6 +57,7 @@ def integrator_note(scene) -> str | None:
 
 def register(app: typer.Typer) -> None:
     def lint(files: list[Path] = typer.Argument(..., help="Scene files (.phys)."),
+             allow_path: Optional[List[Path]] = ALLOW_PATH,
              quiet: bool = typer.Option(False, "--quiet", "-q", help="Only report errors.")) -> None:
         """Check scene files: syntax, names, units, structure, data; list the unknowns."""
         raise typer.Exit(lint_files(files, quiet))

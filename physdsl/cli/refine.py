@@ -2,14 +2,18 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import List, Optional
 
 import typer
+
+from .paths import ALLOW_PATH
 
 
 def register(app: typer.Typer) -> None:
     @app.command("refine")
     def refine(
         scene: Path = typer.Argument(..., help="Scene file (.phys); it is never edited."),
+        allow_path: Optional[List[Path]] = ALLOW_PATH,
         out: Path = typer.Option(..., "-o", "--out", help="Output folder (round-0/, round-1/, ...)."),
         max_rounds: int = typer.Option(3, "--max-rounds", min=0, help="Effects to add at most."),
         backend: str = typer.Option("map", "--backend", "-b",

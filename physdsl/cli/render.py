@@ -6,11 +6,14 @@ from typing import List, Optional
 
 import typer
 
+from .paths import ALLOW_PATH
+
 
 def register(app: typer.Typer) -> None:
     @app.command("render")
     def render_cmd(
         scene: Path = typer.Argument(..., help="The .phys scene."),
+        allow_path: Optional[List[Path]] = ALLOW_PATH,
         out: Path = typer.Option(..., "-o", "--output",
                                  help="Folder for frames (or the grid .png with --posterior)."),
         param: Optional[List[str]] = typer.Option(None, "--param",

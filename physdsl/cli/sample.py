@@ -2,14 +2,18 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import List, Optional
 
 import typer
+
+from .paths import ALLOW_PATH
 
 
 def register(app: typer.Typer) -> None:
     @app.command("sample")
     def sample_cmd(
         program: Path = typer.Argument(..., help="A .phys program, e.g. one written by `physdsl export`."),
+        allow_path: Optional[List[Path]] = ALLOW_PATH,
         n: int = typer.Option(..., "-n", help="How many scenes to draw."),
         seed: int = typer.Option(0, "--seed", help="Random seed."),
         out: Path = typer.Option(..., "-o", "--output", help="Folder for scene-0001/, ... and parameters.csv."),

@@ -17,24 +17,29 @@ from .resolve import resolve
 __all__ = ["ast", "parse", "load", "loads", "format_source", "unknowns_table", "unknowns_rows"]
 
 
-def loads(text: str, filename: str = "<string>", base_dir: str | Path | None = None) -> Scene:
-    """The checked Scene of .phys ``text``; data files and imports are found in ``base_dir``."""
+def loads(text: str, filename: str = "<string>", base_dir: str | Path | None = None,
+          allowed_paths=()) -> Scene:
+    """The checked Scene of .phys ``text``; data files and imports are found in ``base_dir``
+    and below it (or the stdlib, or below a folder of ``allowed_paths``)."""
     module = parse(text, filename)
     base = Path(base_dir) if base_dir is not None else Path(".")
     path = Path(filename) if filename and not filename.startswith("<") else None
-    return resolve(module, text, base, path)
+    return resolve(module, text, base, path, allowed_paths)
 
 
-def load(path: str | Path) -> Scene:
-    """Read, parse and resolve a .phys file (data paths relative to the file)."""
+def load(path: str | Path, allowed_paths=()) -> Scene:
+    """Read, parse and resolve a .phys file (data paths relative to the file, inside its folder
+    tree unless ``allowed_paths`` names other folders)."""
     p = Path(path)
+    if p.suffix != ".phys":  # a parse error would print a line of whatever file this is
+        raise PhysImportError(f"{p} is not a .phys file", hint="a scene is a .phys file")
     try:
         text = p.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise PhysImportError(f"file not found: {p}", hint="check the path") from None
     except (OSError, UnicodeDecodeError) as ex:
         raise PhysImportError(f"cannot read {p}: {ex}") from None
-    return loads(text, str(path), p.parent)
+    return loads(text, str(path), p.parent, allowed_paths)
 
 
 def format_source(text: str, filename: str = "<string>") -> str:

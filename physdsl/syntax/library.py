@@ -1,7 +1,8 @@
 """Import expansion and the effect library: stdlib effect declarations plus a file's imports.
 
-Imports resolve against ``stdlib/`` first, then relative to the importing file; a missing or
-cyclic import is a PhysImportError naming the chain. Every stdlib effect is known to every
+Imports resolve against ``stdlib/`` first, then relative to the importing file, and only to
+``.phys`` files inside the scene's bounds (syntax/bounds.py); a missing, outside or cyclic
+import is a PhysImportError naming the chain. Every stdlib effect is known to every
 scene; importing a stdlib file again is harmless.
 """
 from __future__ import annotations
@@ -12,6 +13,7 @@ from pathlib import Path
 
 from ..errors import PhysError, PhysImportError, PhysNameError, Span
 from . import ast
+from .bounds import Bounds
 from .parser import parse
 from .shipped import STDLIB_DIR
 
@@ -34,13 +36,14 @@ def display_name(path: Path) -> str:
         return str(path)
 
 
-def find_import(path: str, importer_dir: Path | None) -> Path | None:
-    """stdlib first, then relative to the importing file."""
+def find_import(path: str, importer_dir: Path | None, bounds: Bounds) -> Path | None:
+    """stdlib first, then relative to the importing file; only files inside ``bounds`` (a file
+    outside is never looked at, so an error cannot tell whether it exists)."""
     for base in (STDLIB_DIR, importer_dir):
         if base is None:
             continue
         cand = (base / path)
-        if cand.is_file():
+        if bounds.inside(cand) and cand.is_file():
             return cand.resolve()
     return None
 
@@ -50,11 +53,21 @@ def _read(path: Path) -> str:
 
 
 def expand(module: ast.Module, module_dir: Path | None, loaded: Loaded, chain: tuple[Path, ...],
-           errors: list[PhysError], source: str) -> None:
+           errors: list[PhysError], source: str, bounds: Bounds) -> None:
     """Load ``module``'s imports (recursively) and declarations into ``loaded``."""
     for item in module.items:
         if isinstance(item, ast.Import):
-            target = find_import(item.path, module_dir)
+            target = find_import(item.path, module_dir, bounds)
+            if target is None and module_dir is not None and not bounds.inside(module_dir / item.path):
+                errors.append(bounds.outside(module_dir / item.path, "import", item.path, item.span,
+                                             source))
+                continue
+            if target is not None and target.suffix != ".phys":
+                errors.append(PhysImportError(
+                    f"import \"{item.path}\" is not a .phys file", item.span,
+                    hint="an import names a .phys library (effect_type, param and import lines)",
+                    source=source))
+                continue
             if target is None:
                 where = f"stdlib/ or {module_dir}" if module_dir else "stdlib/"
                 errors.append(PhysImportError(
@@ -86,7 +99,7 @@ def expand(module: ast.Module, module_dir: Path | None, loaded: Loaded, chain: t
                     hint="an imported file may only hold effect_type, param and import lines",
                     source=source))
                 continue
-            expand(sub, target.parent, loaded, chain + (target,), errors, text)
+            expand(sub, target.parent, loaded, chain + (target,), errors, text, bounds)
         elif isinstance(item, ast.EffectType):
             old = loaded.effect_types.get(item.name)
             if old is not None and old[0].span != item.span:
@@ -111,7 +124,7 @@ def _stdlib_cached(stamp: tuple) -> Loaded:
     errors: list[PhysError] = []
     for f in sorted((STDLIB_DIR / "effects").glob("*.phys")):
         root = ast.Module((ast.Import(f"effects/{f.name}", None),), (), "<stdlib>")
-        expand(root, STDLIB_DIR, loaded, (), errors, "")
+        expand(root, STDLIB_DIR, loaded, (), errors, "", Bounds((STDLIB_DIR.resolve(),)))
     if errors:
         from ..errors import PhysErrors
         raise errors[0] if len(errors) == 1 else PhysErrors(errors)
@@ -126,10 +139,14 @@ def stdlib() -> Loaded:
 
 
 def load_library(module: ast.Module, module_dir: Path | None, source: str,
-                 errors: list[PhysError], self_path: Path | None = None) -> Loaded:
-    """The stdlib plus ``module``'s own imports and declarations."""
+                 errors: list[PhysError], self_path: Path | None = None,
+                 bounds: Bounds | None = None) -> Loaded:
+    """The stdlib plus ``module``'s own imports and declarations (found inside ``bounds``,
+    by default the folder tree of ``module_dir``)."""
+    if bounds is None:
+        bounds = Bounds.around(module_dir if module_dir is not None else Path.cwd())
     base = stdlib()
     loaded = Loaded(dict(base.effect_types), dict(base.params), set(base.seen), dict(base.sources))
     chain = (self_path.resolve(),) if self_path is not None else ()
-    expand(module, module_dir, loaded, chain, errors, source)
+    expand(module, module_dir, loaded, chain, errors, source, bounds)
     return loaded

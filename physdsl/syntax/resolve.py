@@ -21,6 +21,7 @@ from ..scene import (DH, Body, Camera, EffectDecl, EffectParam, EffectUse, Joint
                      Noise, Prior, Scene, Shape, Unknown, World)
 from . import ast, collide, dists
 from .data import read_control, read_image_times, read_observation
+from .bounds import Bounds
 from .library import load_library
 from .loops import annotate, expand, place
 from .mapping import check_label, clash_hint, unknown_target
@@ -166,11 +167,13 @@ def _shape_words(shape) -> str:
 class Resolver:
     """Resolves one scene module (with its library) into a Scene."""
 
-    def __init__(self, module: ast.Module, source: str, base_dir: Path, path: Path | None):
+    def __init__(self, module: ast.Module, source: str, base_dir: Path, path: Path | None,
+                 bounds: Bounds | None = None):
         self.m = module
         self.source = source
         self.base = base_dir
         self.path = path
+        self.bounds = bounds if bounds is not None else Bounds.around(base_dir)
         self.errors: list[PhysError] = []
         self.sources: dict[str, tuple[object, Spec | None, str]] = {}  # path -> (node, spec, file text)
         self.memo: dict[str, R] = {}
@@ -595,7 +598,7 @@ class Resolver:
     # ---- the scene ---------------------------------------------------------------------------
     def run(self) -> Scene:
         self.supports: dict[str, str] = {}
-        self.lib = load_library(self.m, self.base, self.source, self.errors, self.path)
+        self.lib = load_library(self.m, self.base, self.source, self.errors, self.path, self.bounds)
         scene = self.m.scene
         if scene is None:
             raise self.err(PhysStructureError, "no scene in this file", Span(self.m.filename, 1, 1),
@@ -974,7 +977,7 @@ class Resolver:
             if len(node.args) != 1 or not isinstance(node.args[0].value, ast.Str):
                 raise self.err(PhysTypeError, "mesh takes one file name: mesh(\"part.obj\")", node.span)
             file = node.args[0].value.value
-            p = self.base / file
+            p = self.data_file(file, node.args[0].span, "mesh file")
             if not p.is_file():
                 raise DataError("mesh file not found", p, span=node.args[0].span,
                                 hint="the path is relative to the scene file")
@@ -1208,7 +1211,8 @@ class Resolver:
                 raise self.err(PhysTypeError, f"a control on a {kind} needs {width} column"
                                f"{'s' * (width > 1)}, got {len(item.columns)}", item.span,
                                "e.g. column (fx, fy, fz)" if width == 3 else "e.g. column torque")
-            times, values = read_control(self.base / item.file, item.columns, item.span)
+            times, values = read_control(self.data_file(item.file, item.span), item.columns,
+                                         item.span)
             return EffectUse(use.effect, use.target, params,
                              {"times": times, "values": values if width == 3 else values[:, 0]},
                              item.span)
@@ -1232,6 +1236,11 @@ class Resolver:
             return EffectUse(use.effect, use.target, params, {"times": times}, item.span)
         return EffectUse(use.effect, use.target, params,
                          {"times": times, "values": vr.expr.array()}, item.span)
+
+    def data_file(self, name: str, span: Span | None, what: str = "data file") -> Path:
+        """``name`` relative to the scene's folder, refused when it lies outside the bounds."""
+        self.bounds.check(self.base / name, what, name, span, self._text_for(span))
+        return self.base / name
 
     # ---- observations ----------------------------------------------------------------------
     def observe(self, item: ast.ObserveItem):
@@ -1287,15 +1296,18 @@ class Resolver:
         elif kind == "student_t":
             df = E.Const(4.0)
         noise = Noise(kind, nr.expr, df)
-        file = self.base / item.file
+        file = self.data_file(item.file, item.span)
         if q == "image":
             rate = None
             if item.rate is not None:
                 self.register(f"{name}.rate", item.rate, spec(FREQ, (), True))
                 rate = float(self.value(f"{name}.rate").expr.array())
             frames, times = read_image_times(self.base, item.file, rate,
-                                             self.base / item.times if item.times else None,
-                                             item.span)
+                                             self.data_file(item.times, item.span)
+                                             if item.times else None, item.span)
+            for f in frames:
+                if isinstance(f, Path):  # a frame file may be a link out of the folder
+                    self.bounds.check(f, "image file", f.name, item.span, self.source)
             return Observation_(name, t, q, file, times, np.zeros((len(times), 0)),
                                 np.zeros((len(times), 0), bool), (), noise, frames, item.span)
         if item.rate is not None or item.times is not None:
@@ -1334,9 +1346,12 @@ def _fmt(arr: np.ndarray) -> str:
     return f"{float(arr):g}" if arr.ndim == 0 else "(" + ", ".join(f"{v:g}" for v in arr.ravel()) + ")"
 
 
-def resolve(module: ast.Module, source: str, base_dir: Path, path: Path | None = None) -> Scene:
-    """The checked Scene of a parsed module (``base_dir``: where data and imports are found)."""
+def resolve(module: ast.Module, source: str, base_dir: Path, path: Path | None = None,
+            allowed_paths=()) -> Scene:
+    """The checked Scene of a parsed module (``base_dir``: where data and imports are found;
+    files outside it, the stdlib and ``allowed_paths`` are refused)."""
     try:
-        return Resolver(module, source, Path(base_dir), path).run()
+        return Resolver(module, source, Path(base_dir), path,
+                        Bounds.around(base_dir, allowed_paths)).run()
     except PhysError as ex:  # errors inside loops name their iteration
         raise annotate(ex) from None
