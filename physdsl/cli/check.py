@@ -28,6 +28,9 @@ def register(app: typer.Typer) -> None:
         idata, _ = load_run(posterior)  # bad inputs fail before anything compiles
         io.prepare_outdir(out, force=force)
         model = Model(load(scene))
-        report = model.check(idata, outdir=out, windows=windows)
+        from ..infer.progress import stage
+
+        with stage("check"):  # rollouts, tests and plots: elapsed time on stderr
+            report = model.check(idata, outdir=out, windows=windows)
         typer.echo(report.text())
         typer.echo(f"wrote {out}/report.json, report.md, index.html")

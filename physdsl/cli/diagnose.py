@@ -29,8 +29,11 @@ def register(app: typer.Typer) -> None:
         idata, _ = load_run(posterior)  # bad inputs fail before anything compiles
         io.prepare_outdir(out, force=force)
         model = Model(load(scene))
-        d = run(model, idata, confirm_top=confirm, outdir=out,
-                echo=lambda line: typer.echo(line, err=True))
+        from ..infer.progress import stage
+
+        with stage("diagnose"):  # score tests and refits (each said as it goes): elapsed time
+            d = run(model, idata, confirm_top=confirm, outdir=out,
+                    echo=lambda line: typer.echo(line, err=True))
         typer.echo(d.table())
         typer.echo(d.verdict)
         if d.winner is not None and d.winner.snippet:

@@ -35,7 +35,8 @@ def register(app: typer.Typer) -> None:
         get_backend(backend)
         rounds = run(scene, out, max_rounds=max_rounds, backend=backend, chains=chains,
                      warmup=warmup, samples=samples, seed=seed, force=force,
-                     confirm_top=confirm, revise=tuple(revise), echo=typer.echo)
+                     confirm_top=confirm, revise=tuple(revise), echo=typer.echo,
+                     progress=True)  # each round's fit: its stages on stderr
         typer.echo("\nround  action   effect                             RMS (noise units)   ELPD")
         for r in rounds:
             add = f"{r.added['effect']} on {r.added['target']}" if r.added else "-"
