@@ -42,10 +42,12 @@ def _controls(tmp_path, dt=0.02, n=50, seed=1):
     return times, force
 
 
+@pytest.mark.slow
 def test_cart_pole_fit_and_export(tmp_path):
     """Imported cart-pole, pole mass unknown (uniform 0.05..1 kg): a MAP fit to 1 s of MuJoCo's
     encoder readings (2 mm, 3 mrad noise) recovers 0.2 kg within 3 sd (and 5%); the fitted scene
-    exported as MJCF rolls out in MuJoCo as physdsl's rollout at the posterior medians (1e-9)."""
+    exported as MJCF rolls out in MuJoCo as physdsl's rollout at the posterior medians (1e-9).
+    Slow: 41 CPU s (two compilations of the physics and the fit's)."""
     times, force = _controls(tmp_path)
     scene_path = import_scene(tmp_path, "cart_pole.xml", "--key", "start", "--controls", "controls.csv")
     dt, T = 0.002, 500
@@ -85,6 +87,16 @@ def test_cart_pole_fit_and_export(tmp_path):
     sim = build_simulator(scene)
     ours = joints(sim, sim.simulate({"pole.mass": np.asarray(med)}), ["rail", "hinge"])
     np.testing.assert_allclose(back, ours, atol=1e-9)
-    # the default format is still the proto-program; mjcf refuses proto-program options
-    assert main(["export", str(scene_path), "--posterior", str(run), "--format", "mjcf",
-                 "--widen", "2", "-o", str(tmp_path / "x.xml")]) == 2
+
+
+def test_export_format_usage(tmp_path, capsys):
+    """--format mjcf refuses proto-program options, an unknown format is named; exit 2, no file."""
+    scene, run = str(DATA / "chain.xml"), str(tmp_path / "run")
+    assert main(["export", scene, "--posterior", run, "--format", "mjcf", "--widen", "2",
+                 "-o", str(tmp_path / "x.xml")]) == 2
+    assert "--format mjcf writes the posterior medians" in capsys.readouterr().err
+    assert main(["export", scene, "--posterior", run, "--format", "urdf",
+                 "-o", str(tmp_path / "x.xml")]) == 2
+    err = capsys.readouterr().err
+    assert "error: unknown --format 'urdf'" in err and "hint: use phys or mjcf" in err
+    assert not (tmp_path / "x.xml").exists()
