@@ -7,7 +7,7 @@ from physdsl.cli import main
 from physdsl.physics import build_simulator
 from physdsl.syntax import edit, format_source
 
-from helpers import DATA, import_scene, joints, mujoco_rollout
+from mjcf_helpers import DATA, import_scene, joints, mujoco_rollout
 
 
 def _check_text(path):

@@ -6,7 +6,7 @@ import sys
 from physdsl.cli import main
 from physdsl.syntax import format_source
 
-from helpers import DATA
+from mjcf_helpers import DATA
 
 GOLDEN = DATA / "unsupported.notes.txt"
 
