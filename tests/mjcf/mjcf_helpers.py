@@ -26,26 +26,9 @@ def joints(sim, out, names) -> np.ndarray:
     return np.asarray(out.joint_pos)[:, [sim.joint_names.index(n) for n in names]]
 
 
-def mujoco_rollout(xml_text: str, steps: int, key: int | None = 0, ctrl=None, rk4: bool = False):
+def mujoco_rollout(xml_text: str, steps: int, key: int | None = 0, ctrl=None):
     """qpos (steps + 1, nq) of MuJoCo from keyframe ``key`` (None: qpos0)."""
-    m = mujoco.MjModel.from_xml_string(xml_text) if not str(xml_text).endswith(".urdf") \
-        else mujoco.MjModel.from_xml_path(xml_text)
+    m = mujoco.MjModel.from_xml_string(xml_text)
     qpos = m.key_qpos[key].copy() if key is not None else None
     qvel = m.key_qvel[key].copy() if key is not None else None
-    if rk4:  # the test's own choice of integrator, same on both sides
-        return _rollout_model(m, steps, qpos, qvel, ctrl)
     return rollout(xml_text, steps, qpos=qpos, qvel=qvel, ctrl=ctrl)[0]
-
-
-def _rollout_model(m, steps, qpos, qvel, ctrl):
-    m.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
-    d = mujoco.MjData(m)
-    if qpos is not None:
-        d.qpos[:], d.qvel[:] = qpos, qvel
-    Q = [d.qpos.copy()]
-    for k in range(steps):
-        if ctrl is not None:
-            d.ctrl[:] = ctrl(k)
-        mujoco.mj_step(m, d)
-        Q.append(d.qpos.copy())
-    return np.array(Q)
