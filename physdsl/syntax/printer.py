@@ -139,11 +139,15 @@ class _Printer:
         self.src = source.splitlines() if source else []
         self.out: list[str] = []
         self.tails: dict[int, str] = {}  # output line index -> its end-of-line comment
+        self.last_line = 0  # the source line of the last node asked for a blank line before it
 
     # comments and blank lines
     def _blank_before(self, line: int | None):
         if line is None or not self.src or line < 2 or line - 2 >= len(self.src):
             return
+        if line == self.last_line:  # not the first node on its source line
+            return
+        self.last_line = line
         if self.src[line - 2].strip() == "" and self.out and self.out[-1] != "" \
                 and not self.out[-1].endswith("{"):
             self.out.append("")
