@@ -30,6 +30,13 @@ class _Stage:
     def done(self, note: str) -> None:
         self.note = note
 
+    def say(self, what: str) -> None:
+        """What the stage is doing now (e.g. which start it optimises), with the time so far."""
+        if self.progress is not None:
+            self.progress.update(self.task, rate=what)
+        elif self.stages.plain:
+            self.stages.say(f"{self.name}: {what} ({self.elapsed:.1f} s)")
+
     @property
     def elapsed(self) -> float:
         return time.perf_counter() - self.start

@@ -81,7 +81,8 @@ def _run(model, backend, settings, outdir, resume, force, progress, positions):
         else:  # multistart (MAP's own optimisation then starts at the modes found)
             steps = 0 if ckpt is not None else (
                 max(settings.warmup, 50) if algo.name == "map" else settings.init_steps)
-            problem, positions = starts(model, settings, steps, basins)
+            problem, positions = starts(model, settings, steps, basins, on_start=lambda i, label:
+                                        st.say(f"optimising from start {i + 1} ({label})"))
         st.done(f"{problem.dim} unconstrained dimensions, {settings.chains} chains")
     if basins and progress:
         from .multistart import describe
@@ -105,7 +106,8 @@ def _run(model, backend, settings, outdir, resume, force, progress, positions):
     pacer = Pacer(SAMPLE_CALL_S)
     with stages.stage("sampling", total=settings.samples, completed=done) as st:
         while done < settings.samples:
-            n = pacer.next(settings.samples - done, settings.block)
+            n = pacer.next(settings.samples - done, settings.block) if getattr(
+                algo, "paced", True) else min(settings.block, settings.samples - done)
             t0 = time.perf_counter()
             new_states, draws, stats = algo.sample(problem, states, params, k_sample, n,
                                                    settings, start=done)
@@ -203,7 +205,8 @@ def _keep_mode(out, model, problem, err, backend, settings, stages):
                     "summary.csv, run.json with laplace: failed)")
 
 
-def starts(model, settings: Settings, optimise_steps: int, basins: list | None = None):
+def starts(model, settings: Settings, optimise_steps: int, basins: list | None = None,
+           on_start=None):
     """(Problem, flat unconstrained starts (chains, dim)): ``settings.start`` where given, a
     start from the data's first samples, the prior's centre and prior draws
     (``multistart.start_points``); each optimised for ``optimise_steps`` when positive, the
@@ -216,7 +219,7 @@ def starts(model, settings: Settings, optimise_steps: int, basins: list | None =
     positions, labels = start_points(problem, positions, jax.random.fold_in(k_init, CENTRE_KEY),
                                      given=bool(settings.start))
     if optimise_steps > 0:
-        found = search(problem, positions, labels, optimise_steps)
+        found = search(problem, positions, labels, optimise_steps, on_start)  # (progress)
         positions = found.modes
         if basins is not None:
             basins.extend(found.basins)

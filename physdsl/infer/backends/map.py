@@ -9,6 +9,8 @@ the inverse Hessian as covariance, in unconstrained space, so constrained draws 
 """
 from __future__ import annotations
 
+from functools import partial
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -305,10 +307,18 @@ class MAP(Backend):
         return (jnp.asarray(modes), {"chol": jnp.asarray(np.stack(chols))},
                 {"log_density_at_mode": lps})
 
+    paced = False  # independent draws in one cheap call: no need to cut them by time
+
     def sample(self, problem, states, params, key, n, settings, start=0):
-        keys = jax.random.split(key, states.shape[0])
-        index = start + jnp.arange(n)  # draw j of a chain from fold_in(its key, j)
-        z = jax.vmap(lambda k: jax.vmap(lambda j: jax.random.normal(
-            jax.random.fold_in(k, j), (states.shape[1],)))(index))(keys)
-        draws = states[:, None, :] + jnp.einsum("cij,cnj->cni", params["chol"], z)
+        states = jnp.asarray(states)
+        z = _normals(key, jnp.asarray(start), states.shape[0], n, states.shape[1])
+        draws = states[:, None, :] + jnp.einsum("cij,cnj->cni", jnp.asarray(params["chol"]), z)
         return states, draws, {}
+
+
+@partial(jax.jit, static_argnums=(2, 3, 4))
+def _normals(key, start, chains: int, n: int, dim: int):
+    """Standard normals (chains, n, dim): draw j of chain c from fold_in(split(key)[c], j)."""
+    index = start + jnp.arange(n)
+    return jax.vmap(lambda k: jax.vmap(lambda j: jax.random.normal(
+        jax.random.fold_in(k, j), (dim,)))(index))(jax.random.split(key, chains))
