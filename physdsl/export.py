@@ -18,6 +18,7 @@ import numpy as np
 
 from .errors import PhysError, UsageError
 from .scene import Prior, Scene, Unknown
+from .syntax.loops import unroll_module
 
 CORRELATION_THRESHOLD = 0.1  # below this |r| everywhere, unknowns are written independently
 
@@ -921,7 +922,7 @@ def export(scene_path: str | Path, idata, *, free: Sequence[str] = (), drop: Seq
     if bad:
         raise UsageError(f"--free {bad[0]}: no unknown of that name in {scene_path}",
                          hint="unknowns: " + ", ".join(sorted(names)))
-    module = syntax.parse(source, str(scene_path))
+    module = unroll_module(syntax.parse(source, str(scene_path)))  # loops written out
     module = drop_parts(module, drop, observe, duration=scene.duration, source=source)
     reduced = syntax.loads(print_module(module, source), filename=str(scene_path),
                            base_dir=scene_path.parent)

@@ -19,6 +19,7 @@ import numpy as np
 
 from . import io
 from .errors import PhysError, UsageError
+from .syntax.loops import unroll_module
 
 TRAJECTORY_COLUMNS = ("t", "body", "x", "y", "z", "qw", "qx", "qy", "qz")
 JOINT_COLUMNS = ("t", "joint", "angle")
@@ -290,7 +291,7 @@ def sample(path: str | Path, n: int, seed: int = 0, outdir: str | Path = "sample
     path = Path(path)
     source = path.read_text(encoding="utf-8")
     scene = syntax.loads(source, filename=str(path), base_dir=path.parent)
-    module = syntax.parse(source, str(path))
+    module = unroll_module(syntax.parse(source, str(path)))  # loops written out
     outdir = io.prepare_outdir(outdir, force=force)
     model = compile_scene(scene)
     draws = model.sample_prior(jax.random.PRNGKey(seed), n)
