@@ -7,6 +7,7 @@ user's file is never edited: round k lives in ``OUT/round-k/scene.phys``; ``OUT/
 records every round's error and action."""
 from __future__ import annotations
 
+import os
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
@@ -178,6 +179,32 @@ def _write_summary(out: Path, rounds: list[Round]) -> None:
                      f"{r.rms_sigma:.2f} | {r.elpd:.1f} | {z} |")
     io.write_text(out / "refine.md", "\n".join(lines) + "\n")
     _plot(out, rounds)
+    io.write_text(out / "index.html", _html(out, rounds))
+
+
+def _html(out: Path, rounds: list[Round]) -> str:
+    """refine.md's table as a page, with refine.png and links to each round's scene and check."""
+    from html import escape as e
+
+    from .report import html_page
+
+    rows = []
+    for r in rounds:
+        scene = Path(os.path.relpath(Path(r.scene).resolve(), out.resolve())).as_posix()
+        check = Path(scene).parent / "check" / "index.html"
+        add = f"{r.added['effect']} on {r.added['target']}" if r.added else "—"
+        rep = f"{r.replaced['effect']} on {r.replaced['target']}" if r.replaced else "—"
+        z = "n/a" if r.log_evidence is None else f"{r.log_evidence:.1f}"
+        rows.append(f"<tr><td>{r.index}</td><td><a href='{e(scene)}'>{e(scene)}</a></td>"
+                    f"<td>{e(r.action or '—')}</td><td>{e(add)}</td><td>{e(rep)}</td>"
+                    f"<td>{r.rms_sigma:.2f}</td><td>{r.elpd:.1f}</td><td>{z}</td>"
+                    f"<td><a href='{e(check.as_posix())}'>check</a></td></tr>")
+    return html_page("physdsl refine", [
+        "<h1>Refine</h1>", f"<p>{e(rounds[-1].verdict)}</p>" if rounds else "",
+        "<table id='rounds'><tr><th>round</th><th>scene</th><th>action</th><th>added</th>"
+        "<th>replaced</th><th>RMS (σ)</th><th>ELPD</th><th>log Z</th><th>report</th></tr>",
+        *rows, "</table>", "<img src='refine.png' alt='residual RMS and ELPD per round'>",
+        "<p><a href='refine.json'>refine.json</a> · <a href='refine.md'>refine.md</a></p>"])
 
 
 def _plot(out: Path, rounds: list[Round]) -> None:

@@ -163,15 +163,7 @@ def markdown(report: "Report", plots: dict[str, list[tuple[str, str]]]) -> str:
 def index_html(report: "Report", plots: dict[str, list[tuple[str, str]]]) -> str:
     """A self-contained page (inline CSS, relative image links) gathering summary, tables, plots."""
     e = html.escape
-    parts = ["<!DOCTYPE html>", "<html lang='en'><head><meta charset='utf-8'>",
-             "<title>physdsl check</title><style>",
-             "body{font-family:sans-serif;max-width:1000px;margin:1em auto;padding:0 1em}",
-             "pre{background:#f4f4f4;padding:.6em;white-space:pre-wrap}",
-             "table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #ccc;"
-             "padding:2px 8px;text-align:right}th{background:#eee}",
-             ".fail{color:#b00}.warn{color:#a60}.info{color:#06a}.ok{color:#070}",
-             "img{max-width:100%;display:block;margin:.5em 0}", "</style></head><body>",
-             "<h1>Model check</h1>", f"<pre>{e(report.text())}</pre>",
+    parts = ["<h1>Model check</h1>", f"<pre>{e(report.text())}</pre>",
              "<p><a href='report.json'>report.json</a> · <a href='report.md'>report.md</a></p>"]
     if report.flags:
         parts.append("<h2>Flags</h2><ul>")
@@ -196,5 +188,19 @@ def index_html(report: "Report", plots: dict[str, list[tuple[str, str]]]) -> str
         parts.append("</table>")
         parts += [f"<img src='{e(name)}' alt='{e(kind)} plot of {e(o.name)}'>"
                   for kind, name in plots.get(o.name, [])]
-    parts.append("</body></html>")
-    return "\n".join(parts) + "\n"
+    return html_page("physdsl check", parts)
+
+
+def html_page(title: str, body: list[str]) -> str:
+    """A self-contained page (inline CSS, relative links) around ``body``, HTML already escaped;
+    the check report's and refine's summary share it."""
+    return "\n".join([
+        "<!DOCTYPE html>", "<html lang='en'><head><meta charset='utf-8'>",
+        f"<title>{html.escape(title)}</title><style>",
+        "body{font-family:sans-serif;max-width:1000px;margin:1em auto;padding:0 1em}",
+        "pre{background:#f4f4f4;padding:.6em;white-space:pre-wrap}",
+        "table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #ccc;"
+        "padding:2px 8px;text-align:right}th{background:#eee}",
+        ".fail{color:#b00}.warn{color:#a60}.info{color:#06a}.ok{color:#070}",
+        "img{max-width:100%;display:block;margin:.5em 0}", "</style></head><body>",
+        *body, "</body></html>"]) + "\n"
