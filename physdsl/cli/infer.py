@@ -49,7 +49,6 @@ def register(app: typer.Typer) -> None:
         from ..infer import get_backend
         from ..infer.backends.map import LaplaceError
         from ..infer.init import start_values
-        from ..infer.interrupt import Interrupted
         from ..infer.intervals import SHOWN
         from ..syntax import load
 
@@ -78,9 +77,10 @@ def register(app: typer.Typer) -> None:
             if getattr(err, "idata", None) is not None:
                 _report(model, err.idata, backend)
             raise
-        except Interrupted as ex:  # (click would turn it into 'Aborted!' and exit 1)
-            typer.echo("interrupted" + (f": {ex.note}" if ex.note else ""), err=True)
-            raise typer.Exit(128 + ex.signum)  # the shell's code of a signal: 130, 143
+        except KeyboardInterrupt as ex:  # Interrupted, or a second Ctrl-C (click would say
+            note = getattr(ex, "note", "")  # 'Aborted!' and exit 1)
+            typer.echo("interrupted" + (f": {note}" if note else ""), err=True)
+            raise typer.Exit(128 + getattr(ex, "signum", 2))  # the shell's code: 130, 143
         _report(model, idata, backend)
         typer.echo(f"wrote {out}/posterior.nc, summary.csv, run.json")
         sys.stdout.flush()

@@ -69,6 +69,7 @@ def test_map_writes_the_mode_and_names_the_flat_direction(split_scene, cli, tmp_
     assert "fit: residual RMS" in stdout  # the mode's fit quality is printed too
 
 
+@pytest.mark.slow  # a second fit (MAP, then random-walk Metropolis): about a minute
 def test_fallback_rmh_samples_from_the_mode(split_scene, cli, tmp_path):
     import arviz as az
 
