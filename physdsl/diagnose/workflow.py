@@ -1,6 +1,7 @@
 """From a compiled Model and its posterior to the arrays ``check`` reads (ObservableFit)."""
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import jax.numpy as jnp
@@ -129,8 +130,9 @@ def observable_fits(model, idata, max_draws: int = MAX_DRAWS) -> list[Observable
             pred = np.asarray(trajectory.rotation_vector(jnp.asarray(pred)))
             point = np.asarray(trajectory.rotation_vector(jnp.asarray(point)))
         speed = None
-        if obs.quantity == "position":
-            vel = np.asarray(rollout.body_vel[:, model.simulator.body_names.index(obs.target)])
+        if obs.quantity == "position":  # the speed of the observed body or marker
+            vel = np.asarray(trajectory.model_track(rollout, model.simulator,
+                                                    dataclasses.replace(obs, quantity="velocity")))
             speed_track = np.linalg.norm(vel, axis=1)
             speed = np.interp(obs.times, np.asarray(rollout.t), speed_track)
         elif obs.quantity == "angle":

@@ -69,11 +69,13 @@ def test_a_marker_track_fits_the_release_angle(tip_data):
             "  param a0 ~ uniform(0 deg, 60 deg)")
             % '  observe tip.position from "tip.csv" where body == "pole_tip" { noise: 1 mm }')
     scene = loads(text, "fit.phys", tip_data)
-    post = compile_scene(scene).infer(backend="map", chains=1, samples=200,
-                                        progress=False).posterior
-    a0 = np.asarray(post["a0"]).ravel()
+    model = compile_scene(scene)
+    idata = model.infer(backend="map", chains=1, samples=200, progress=False)
+    a0 = np.asarray(idata.posterior["a0"]).ravel()
     assert abs(np.median(a0) - np.deg2rad(30)) < 3 * np.std(a0) + 1e-4
     assert np.std(a0) < np.deg2rad(0.5)
+    report = model.check(idata)  # residuals of the marker track: at the noise (1 mm)
+    assert 0.7 < report.rms_sigma < 1.3
 
 
 def test_a_coloured_marker_is_drawn_as_a_dot():
