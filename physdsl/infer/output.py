@@ -237,6 +237,9 @@ def fit_quality_lines(q: dict) -> list[str]:
     def sig(x):
         return fmt_sigma(float("nan") if x is None else x)
 
+    if "error" in q:
+        return [f"fit: quality not computed ({q['error']})"]
+
     per = ", ".join(f"{k} {sig(v)}" for k, v in q["observables"].items())
     lines = [f"fit: residual RMS {sig(q['rms_sigma'])} overall in noise units ({per})"]
     w = q.get("worst_window")

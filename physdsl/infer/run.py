@@ -178,7 +178,10 @@ def _fit_quality(model, idata, stages) -> dict:
     from .output import fit_quality
 
     with stages.stage("fit quality"):
-        q = fit_quality(model, idata)
+        try:
+            q = fit_quality(model, idata)
+        except Exception as ex:  # noqa: BLE001 - a diagnostic must not lose a finished fit
+            q = {"error": f"{type(ex).__name__}: {ex}", "warnings": []}
     idata.attrs["fit_quality"] = json.dumps(q)
     return q
 

@@ -102,3 +102,18 @@ def test_infer_prints_and_saves_the_fit_quality(projectile_scene, cli, tmp_path)
         assert f"{stage}: done in" in err  # progress of every stage on stderr
     q = json.loads((out / "run.json").read_text())["fit_quality"]
     assert 0.5 < q["rms_sigma"] < 1.5 and q["verdict"]
+
+
+def test_a_failing_quality_check_does_not_lose_the_fit(good, monkeypatch):
+    from physdsl.infer import output, run
+    from physdsl.infer.progress import Stages
+
+    def broken(model, idata):
+        raise ValueError("no trajectory")
+
+    monkeypatch.setattr(output, "fit_quality", broken)
+    idata = good.copy()
+    q = run._fit_quality(None, idata, Stages(enabled=False))
+    assert q == {"error": "ValueError: no trajectory", "warnings": []}
+    assert output.fit_quality_lines(q) == ["fit: quality not computed (ValueError: no trajectory)"]
+    assert "fit_quality" in idata.attrs
