@@ -42,8 +42,9 @@ def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", cha
     from .stepwise import judge, parse, reexamine
     from .workflow import point_estimate
 
-    out = io.prepare_outdir(outdir, force=force)
     scene_path = Path(scene_path)
+    _check_revisable(load(scene_path), [parse(k) for k in revise])
+    out = io.prepare_outdir(outdir, force=force)
     current = out / "round-0" / "scene.phys"
     current.parent.mkdir(parents=True, exist_ok=True)
     _copy_scene(scene_path, current)
@@ -122,6 +123,20 @@ def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", cha
         echo(f"round {k}: added `{w.snippet.strip()}` -> {current}")
     _write_summary(out, rounds)
     return rounds
+
+
+def _check_revisable(scene, cands) -> None:
+    """A UsageError naming a ``--revise`` effect the scene does not have."""
+    from ..errors import PhysError, UsageError
+    from .edits import without_effect
+
+    for c in cands:
+        try:
+            without_effect(scene, c)
+        except (PhysError, KeyError, AttributeError):
+            raise UsageError(f"--revise {c.key}: the scene has no effect {c.name} on "
+                             f"{','.join(c.target)}", hint="give EFFECT@TARGET of an effect in "
+                             "the scene, e.g. linear_drag@ball") from None
 
 
 def _write_round(out: Path, index: int, text: str, scene_path: Path) -> Path:

@@ -187,3 +187,13 @@ def test_strong_evidence_breaks_a_tie_in_elpd_not_a_clear_win():
     assert order_by_evidence(tie)[0].effect == "linear_drag"  # n/a: ΔLFO decides
     clear = [row("linear_drag", 900.0, 2094.0, 300.0), row("quadratic_drag", 851.8, 2090.6, 310.0)]
     assert order_by_evidence(clear)[0].effect == "linear_drag"
+
+
+def test_refine_revise_names_an_effect_the_scene_lacks(steep, tmp_path, capsys):
+    from .conftest import run_cli
+
+    folder, _ = steep
+    code, _, err = run_cli(["refine", folder / "naive.phys", "-o", tmp_path / "out", "--revise",
+                            "linear_drag@ball"], capsys)
+    assert code == 2 and "--revise linear_drag@ball" in err and "EFFECT@TARGET" in err
+    assert "Traceback" not in err and not (tmp_path / "out").exists()
