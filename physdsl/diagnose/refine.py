@@ -119,7 +119,10 @@ def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", cha
                  **w.fitted.get("values", {w.fitted["name"]: w.fitted["median"]})}
         cand = next(c for c in physics_candidates(model.scene) if c.key == f"{w.effect}@{w.target}")
         current = _write_round(out, k + 1, with_effect(model.scene, cand), scene_path)
-        revisable[cand.key] = (cand, _effects(load(current)))  # chosen against these
+        # chosen against these effects; a group with a strength per joint is one effect per
+        # joint from now on (each may be swapped or dropped on its own), a shared one stays one
+        for part in ([cand] if cand.shared else cand.parts()):
+            revisable[part.key] = (part, _effects(load(current)))
         echo(f"round {k}: added `{w.snippet.strip()}` -> {current}")
     _write_summary(out, rounds)
     return rounds
