@@ -4,7 +4,7 @@ model posterior, with ``name: value`` lines.
 Cases: every ``examples/hidden-effect/CASE`` with its hidden effect added to ``naive.phys``
 (what ``refine``'s first round fits: the right effect at the library's default prior), and
 the MuJoCo-made examples that have no hidden effect (``double_pendulum``, ``cart_pole``).
-Each is fitted once by MAP + Laplace (``infer --backend map``, default starts, 4 chains x
+Each is fitted once by MAP + Laplace (``infer --backend map``, default starts, 2 chains x
 ``--samples`` draws), in its own process with a time limit. Per true parameter component:
 whether it lies in the 5-95% interval of the model posterior and of the robust one, and
 the width ratio. Printed:
@@ -79,7 +79,7 @@ def run_case(name: str, samples: int) -> dict:
     model = Model(loads(scene_text(folder), filename=str(folder / "scene.phys"),
                         base_dir=folder))
     t0 = time.time()
-    idata = model.infer(backend="map", samples=samples, progress=False)
+    idata = model.infer(backend="map", chains=2, samples=samples, progress=False)
     wall = time.time() - t0
     truth = truth_values(folder, model.unknown_names)
     rows = []

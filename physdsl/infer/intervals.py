@@ -44,8 +44,12 @@ METHOD = "sandwich, REML residual covariance"
 # -- the residuals' covariance: white noise plus a smooth discrepancy, fitted by REML ------
 KERNELS = ("exponential", "matern32")
 MAX_ROWS = 600  # longer series are averaged in consecutive bins first (dense algebra)
-EVIDENCE = 6.0  # a discrepancy must lower -2 log REML by this much (the 95% point of
-# chi-square with 2 degrees of freedom: its scale and length), else the residuals are white
+PENALTY = 3.0  # per fitted parameter of the residual model (noise level; discrepancy scale
+# and length): a noise level other than the stated one needs a likelihood-ratio statistic
+# above 3 (chi-square 1 dof: 92%), a discrepancy above a further 6 (chi-square 2 dof: 95%)
+LEVERAGE = 0.05  # a fitted direction counts for a series where it absorbs this much of it
+MIN_DOF = 20  # a discrepancy is fitted only to a series with this many residual degrees of
+# freedom (rows less fitted directions): fewer cannot tell one from white noise
 
 
 def kernel(kind: str, dt: np.ndarray, ell: float) -> np.ndarray:
@@ -70,7 +74,7 @@ def _reml(yq, Bq, lam, phis):
     q = np.einsum("fn,n->f", w, yq ** 2) - np.einsum("fp,fp->f", b, np.linalg.solve(G, b[..., None])[..., 0])
     ok = (sign > 0) & (q > 0)
     s2 = np.where(ok, q, 1.0) / (n - p)
-    v = (n - p) * np.log(s2) - np.sum(np.log(w), axis=1) + logdet_g
+    v = (n - p) * (np.log(s2) + 1.0) - np.sum(np.log(w), axis=1) + logdet_g
     return np.where(ok, v, np.inf), s2
 
 
@@ -82,32 +86,37 @@ def _eigh(times: bytes, kind: str, ell: float):
     return np.linalg.eigh(kernel(kind, t[:, None] - t[None, :], ell))
 
 
-def residual_covariance(t: np.ndarray, y: np.ndarray, B: np.ndarray):
-    """Fit s^2 (I + phi K_ell) to one residual series ``y`` at times ``t`` by restricted
-    maximum likelihood, the fitted unknowns' directions ``B`` (N, p) projected out (the fit
-    absorbed the residuals along them, so plain likelihood would miss that part). K: the
-    exponential or Matern 3/2 kernel, whichever the data prefer; phi = 0 is white noise at
-    level s. Returns (covariance (N, N), {kind, s2, phi, ell})."""
-    U, sv, _ = np.linalg.svd(B, full_matrices=False)
-    B = U[:, sv > 1e-8 * max(float(sv.max(initial=0.0)), 1e-300)]
-    dt = t[:, None] - t[None, :]
-    span = float(t.max() - t.min()) if t.size > 1 else 1.0
-    step = float(np.median(np.diff(np.sort(t)))) if t.size > 1 else 1.0
-    phis = np.concatenate([[0.0], np.geomspace(1e-3, 1e4, 36)])
-    best = (np.inf, "white", 0.0, step, 1.0)
-    for kind in KERNELS:
-        for ell in np.geomspace(max(step, 1e-12), 2 * span, 14):
+def residual_covariance(t: np.ndarray, y: np.ndarray, W: np.ndarray):
+    """The covariance of one residual series ``y`` (standardised) at times ``t``: white
+    noise at the stated level (I), at a fitted level (s^2 I), or s^2 (I + phi K_ell) with K
+    an exponential or Matern 3/2 kernel (a smooth discrepancy), whichever has the lowest
+    restricted likelihood (REML) penalised by ``PENALTY`` per parameter. REML projects out
+    the directions the fit absorbed, which plain likelihood would take for less noise: those
+    of ``W`` (N, d) = Cov_post(theta, y)^T in whitened unknowns (its squared singular values
+    are the fitted unknowns' leverage on this series) with at least ``LEVERAGE``. Returns
+    (covariance (N, N), {kind, s2, phi, ell})."""
+    U, sv, _ = np.linalg.svd(W, full_matrices=False)
+    B = U[:, sv ** 2 >= LEVERAGE]
+    n, p = B.shape
+    step = float(np.median(np.diff(np.sort(t)))) if n > 1 else 1.0
+    r = y - B @ (B.T @ y)
+    stated = float(r @ r)  # -2 log REML of I, the same constant dropped
+    v, s2 = _reml(y, B, np.zeros(n), np.zeros(1))
+    best = (stated, "stated", 1.0, 0.0, step)
+    if float(v[0]) + PENALTY < best[0]:
+        best = (float(v[0]) + PENALTY, "white", float(s2[0]), 0.0, step)
+    span = float(t.max() - t.min()) if n > 1 else 1.0
+    phis = np.geomspace(1e-3, 1e4, 36)
+    for kind in KERNELS if n - p >= MIN_DOF else ():
+        for ell in np.geomspace(max(step, 1e-12), span, 14):
             lam, Q = _eigh(t.tobytes(), kind, float(ell))
             v, s2 = _reml(Q.T @ y, Q.T @ B, lam, phis)
             i = int(np.argmin(v))
-            if v[i] < best[0]:
-                best = (float(v[i]), kind if phis[i] > 0 else "white", float(phis[i]), ell, float(s2[i]))
-    _, kind, phi, ell, s2 = best
-    white = _reml(y, B, np.zeros(t.size), np.zeros(1))
-    if kind != "white" and best[0] > float(white[0][0]) - EVIDENCE:
-        kind, phi, s2 = "white", 0.0, float(white[1][0])  # not clearly more than white noise
-    corr = np.eye(t.size) + (phi * kernel(kind, dt, ell) if phi > 0 else 0.0)
-    return s2 * corr, {"kind": kind, "s2": s2, "phi": phi, "ell": float(ell)}
+            if v[i] + 3 * PENALTY < best[0]:
+                best = (float(v[i]) + 3 * PENALTY, kind, float(s2[i]), float(phis[i]), float(ell))
+    _, kind, s2, phi, ell = best
+    corr = np.eye(n) + (phi * kernel(kind, t[:, None] - t[None, :], ell) if phi > 0 else 0.0)
+    return s2 * corr, {"kind": kind, "s2": s2, "phi": phi, "ell": ell}
 
 
 def _binned(t, y, C, rows: int):
@@ -139,6 +148,7 @@ def robust_covariance(draws: np.ndarray, streams: list[tuple[np.ndarray, np.ndar
     (the components are taken as independent of each other)."""
     delta = draws - draws.mean(axis=0)
     V = np.zeros((draws.shape[1],) * 2)
+    Li = np.linalg.inv(np.linalg.cholesky(np.cov(draws, rowvar=False).reshape(V.shape)))
     fits = []
     for times, res, mask in streams:
         rbar = res.mean(axis=0)
@@ -149,7 +159,7 @@ def robust_covariance(draws: np.ndarray, streams: list[tuple[np.ndarray, np.ndar
                 continue
             t, y, Ck = _binned(np.asarray(times, float)[rows], rbar[rows, k], C[:, rows, k],
                                MAX_ROWS)
-            gamma, fit = residual_covariance(t, y, Ck.T)
+            gamma, fit = residual_covariance(t, y, (Li @ Ck).T)
             V += Ck @ gamma @ Ck.T
             fits.append(fit)
     return 0.5 * (V + V.T), fits
@@ -183,7 +193,7 @@ def add_robust(idata, model, problem, flat: np.ndarray, constrained: dict, shown
     post = {u: np.asarray(values[u]).reshape(chains, samples, *np.shape(values[u])[1:])
             for u in model.unknown_names}
     ds = az.from_dict(posterior=post).posterior
-    found = [fit for fit in fits if fit["kind"] != "white"]
+    found = [fit for fit in fits if fit["kind"] in KERNELS]
     ds.attrs.update({"method": METHOD, "max_widening": float(f.max(initial=1.0)),
                      "residual_models": json.dumps(fits),
                      "discrepancies": f"{len(found)} of {len(fits)} residual components"})
