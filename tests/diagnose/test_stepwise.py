@@ -189,11 +189,12 @@ def test_strong_evidence_breaks_a_tie_in_elpd_not_a_clear_win():
     assert order_by_evidence(clear)[0].effect == "linear_drag"
 
 
-def test_refine_revise_names_an_effect_the_scene_lacks(steep, tmp_path, capsys):
+def test_refine_revise_names_an_effect_the_scene_lacks(tmp_path, capsys):
     from .conftest import run_cli
 
-    folder, _ = steep
-    code, _, err = run_cli(["refine", folder / "naive.phys", "-o", tmp_path / "out", "--revise",
-                            "linear_drag@ball"], capsys)
-    assert code == 2 and "--revise linear_drag@ball" in err and "EFFECT@TARGET" in err
+    write_csv(tmp_path / "joints.csv", np.linspace(0, 1, 11), np.zeros((11, 1)), "hinge")
+    load_scene(tmp_path, PENDULUM, "naive.phys")
+    code, _, err = run_cli(["refine", tmp_path / "naive.phys", "-o", tmp_path / "out", "--revise",
+                            "linear_drag@bob"], capsys)
+    assert code == 2 and "--revise linear_drag@bob" in err and "EFFECT@TARGET" in err
     assert "Traceback" not in err and not (tmp_path / "out").exists()
