@@ -116,7 +116,8 @@ def test_infer_end_to_end(projectile_scene, tmp_path, cli):
     assert [r["name"] for r in rows] == ["ball.velocity[0]", "ball.velocity[1]",
                                          "ball.velocity[2]", "linear_drag@ball.coefficient"]
     assert rows[3]["unit"] == "kg/s"
-    drag = post["linear_drag@ball.coefficient"].values
+    assert {r["intervals"] for r in rows} == {"robust"}  # the default: posterior_robust
+    drag = idata.posterior_robust["linear_drag@ball.coefficient"].values
     assert float(rows[3]["mean"]) == pytest.approx(float(drag.mean()), rel=1e-9)
     assert float(rows[3]["q5"]) < 0.3 < float(rows[3]["q95"])
 
