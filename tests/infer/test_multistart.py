@@ -78,3 +78,17 @@ def test_starts_are_the_data_the_centre_and_prior_draws(throw):
     assert abs(float(centre["speed"])) < 1.0 and abs(float(centre["angle"]) - np.pi / 2) < 0.5
     np.testing.assert_allclose(starts[2], x[0])
     np.testing.assert_allclose(prior_centre(problem, jax.random.PRNGKey(2)), starts[1])
+
+
+def test_a_map_run_prints_and_saves_its_basins(throw, tmp_path, capsys):
+    import json
+
+    problem, _ = throw
+    idata = problem.model.infer(backend="map", chains=2, warmup=50, samples=10,
+                                outdir=tmp_path / "run", progress=True)
+    run = json.loads((tmp_path / "run" / "run.json").read_text())
+    assert run["basins"] == json.loads(idata.attrs["basins"])
+    best = run["basins"][0]
+    assert "data" in best["starts"] and 0.7 < best["rms_sigma"] < 1.3
+    assert abs(best["values"]["speed"] - 4.0) < 0.1
+    assert "basins found:" in capsys.readouterr().err
