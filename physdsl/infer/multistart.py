@@ -14,6 +14,7 @@ from the data puts the throw where the first samples say, so it does.
 from __future__ import annotations
 
 import json
+import warnings
 from dataclasses import dataclass, field
 
 import jax
@@ -56,7 +57,12 @@ def start_points(problem, positions, key, given: bool = False) -> tuple[np.ndarr
         labels.append("given")
     centre = prior_centre(problem, key)
     draws = list(positions[1:] if given else positions)
-    from_data = data_start(problem, draws[0] if draws else positions[0], others=(centre,))
+    try:
+        from_data = data_start(problem, draws[0] if draws else positions[0], others=(centre,))
+    except Exception as err:  # noqa: BLE001 - a helper start: the run goes on without it
+        warnings.warn(f"no start from the data ({type(err).__name__}: {err}); starting from "
+                      "the prior's centre and draws", stacklevel=2)
+        from_data = None
     if from_data is not None:
         rows.append(from_data)
         labels.append("data")
