@@ -182,11 +182,16 @@ def add_robust(idata, model, problem, flat: np.ndarray, constrained: dict, shown
     res = _residual_draws(model, problem, constrained)
     streams = [(np.asarray(o.obs.times, float), res[o.obs.name],
                 np.asarray(problem.data[o.obs.name]["mask"], bool)) for o in model.observed]
-    V, fits = robust_covariance(X, streams)
     keep = _physical_dims(model, dim)
     m = X.mean(axis=0)
-    sigma = np.cov(X[:, keep], rowvar=False).reshape(keep.size, keep.size)
-    A, f = widening(sigma, V[np.ix_(keep, keep)])
+    try:
+        V, fits = robust_covariance(X, streams)
+        sigma = np.cov(X[:, keep], rowvar=False).reshape(keep.size, keep.size)
+        A, f = widening(sigma, V[np.ix_(keep, keep)])
+    except np.linalg.LinAlgError:  # draws on a lower-dimensional set: no covariance to widen
+        idata.attrs["intervals"] = "model"
+        idata.attrs["intervals_note"] = "robust intervals unavailable: a singular posterior covariance"
+        return idata
     Xr = X.copy()
     Xr[:, keep] = m[keep] + (X[:, keep] - m[keep]) @ A.T
     values = _constrain(model, problem)(jnp.asarray(Xr))
@@ -205,6 +210,8 @@ def add_robust(idata, model, problem, flat: np.ndarray, constrained: dict, shown
 def _unavailable(model, X) -> str:
     if not model.observed:
         return "no trajectory observation"
+    if X.shape[1] == 0 or _physical_dims(model, X.shape[1]).size == 0:
+        return "no unknown but noise scales"
     if not np.all(np.isfinite(X)):
         return "non-finite draws"
     if X.shape[0] < 4 * X.shape[1] + 4:
