@@ -27,7 +27,7 @@ import numpyro.distributions as dist
 
 from .errors import ModelError, PhysTypeError
 from .expr import evaluate, references
-from .observe import trajectory
+from .observe import sensor, trajectory
 from .scene import Observation, Prior, Scene, Unknown
 
 PRED_PREFIX = "pred:"
@@ -224,7 +224,8 @@ class Model:
         if rollout is None:
             rollout = self.simulator.simulate(values, self.rollout_fields)
         data = self.data if data is None else data
-        return {o.obs.name: trajectory.predict(rollout, self.simulator, o.obs, _interp(data[o.obs.name]))
+        return {o.obs.name: sensor.predict(rollout, self.simulator, o.obs, _interp(data[o.obs.name]),
+                                           values)
                 for o in self.observed}
 
     def noise_scale(self, obs: Observation, values):
@@ -290,7 +291,7 @@ class Model:
         rollout = self.simulator.simulate(values, self.rollout_fields)
         for o in self.observed:
             d = data[o.obs.name]
-            pred = trajectory.predict(rollout, self.simulator, o.obs, _interp(d))
+            pred = sensor.predict(rollout, self.simulator, o.obs, _interp(d), values)
             numpyro.deterministic(PRED_PREFIX + o.obs.name, pred)
             res = self._residual(o.obs, pred, d)
             noise = self.noise_distribution(o.obs, values, jnp.zeros_like(res))

@@ -206,6 +206,16 @@ class Noise:
 
 
 @dataclass(frozen=True)
+class Sensor:
+    """Terms of a measuring device (SI expressions, None where absent): the observation reads
+    ``gain * pred(t - delay) + offset`` (see physdsl.observe.sensor)."""
+
+    offset: Expr | None = None  # scalar or per axis, in the quantity's units
+    gain: Expr | None = None  # dimensionless, 1 = exact
+    delay: Expr | None = None  # s
+
+
+@dataclass(frozen=True)
 class Observation:
     """Measured data of one observable, read and checked.
 
@@ -227,6 +237,8 @@ class Observation:
     noise: Noise
     frames: tuple[Path, ...] = ()
     span: Span | None = None
+    sensor: "Sensor | None" = None  # offset, gain, delay of the measuring device
+
 
     @property
     def dim(self) -> int:

@@ -26,6 +26,7 @@ from .library import load_library
 from .loops import annotate, expand, place
 from .mapping import check_label, clash_hint, unknown_target
 from .markers import MARKER_QUANTITIES, build_marker
+from .sensor import SENSOR_FIELDS, resolve_sensor
 from .units import (ANGLE, DIMLESS, LENGTH, MASS, TIME, Dim, UnitError, known_units, lookup,
                     parse_unit)
 
@@ -95,7 +96,7 @@ BODY_QUANTITIES = {"position": (("x", "y", "z"), LENGTH), "orientation": (("qw",
 JOINT_QUANTITIES = {"angle": ("angle",), "angular_rate": ("rate",)}
 CONTACT_SUGAR = {"friction": "contact_friction", "restitution": "restitution",
                  "rolling_resistance": "rolling_resistance"}
-OBSERVE_FIELDS = {"noise", "model", "df"}
+OBSERVE_FIELDS = {"noise", "model", "df", "offset", "gain", "delay"}
 FUNCS = {"sqrt", "sin", "cos", "tan", "exp", "log", "abs", "atan2", "norm", "euler", "quat",
          "axis_angle"}
 
@@ -1298,6 +1299,9 @@ class Resolver:
         noise = Noise(kind, nr.expr, df)
         file = self.data_file(item.file, item.span)
         if q == "image":
+            if any(k in fs for k in SENSOR_FIELDS):
+                raise self.err(PhysStructureError, "images take no sensor terms", item.span,
+                               "offset, gain and delay are for trajectory observations")
             rate = None
             if item.rate is not None:
                 self.register(f"{name}.rate", item.rate, spec(FREQ, (), True))
@@ -1315,7 +1319,9 @@ class Resolver:
                            "a CSV file has its own column t", item.span)
         check_label(self, item, file, self.items_by_name)  # the label may differ from t
         times, values, mask = read_observation(file, cols, item.where, item.span)
-        return Observation_(name, t, q, file, times, values, mask, tuple(cols), noise, (), item.span)
+        sensor = resolve_sensor(self, item, name, qdim, dim, fs)
+        return Observation_(name, t, q, file, times, values, mask, tuple(cols), noise, (), item.span,
+                            sensor)
 
 
 def Observation_(*args):
