@@ -50,6 +50,9 @@ def infer(model, backend: str = "nuts", settings: Settings | None = None, outdir
     if init:
         from .init import with_init
 
+        if positions is not None:
+            raise UsageError("start values (init) and start positions (positions) both given",
+                             hint="positions replace the whole initialisation: give one of them")
         settings = with_init(model, settings, init)
     with termination():
         try:
