@@ -22,7 +22,6 @@ BAD_DATA = {
                        "ball", 4, "t"),
     "duplicate times": ("t,body,x,y,z\n0,ball,0,0,1\n0.1,ball,0.3,0,1.3\n0.1,ball,0.3,0,1.3\n",
                         "ball", 4, "t"),
-    "body the scene lacks": ("t,body,x,y,z\n0,rock,0,0,1\n0.1,rock,0.3,0,1.3\n", "rock", 2, "body"),
 }
 
 
