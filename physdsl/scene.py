@@ -275,6 +275,7 @@ class World:
     substeps: int = 1
     integrator: str = "semi_implicit_euler"
     contact_model: str = "lcp"
+    medium: str = "air"  # the fluid (physdsl/media.py): sets the physical scale of drag
 
 
 @dataclass(frozen=True)

@@ -167,5 +167,6 @@ def sensor_candidates(scene: Scene) -> list[Candidate]:
     for o in scene.observations:
         if o.quantity in ("position", "angle", "velocity", "angular_rate"):
             for kind in SENSOR_KINDS:
-                out.append(Candidate("sensor", kind, (o.name,)))
+                if getattr(o.sensor, kind, None) is None:  # a term the scene has is no candidate
+                    out.append(Candidate("sensor", kind, (o.name,)))
     return out

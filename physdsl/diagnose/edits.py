@@ -48,7 +48,12 @@ def with_effect(scene, cand: Candidate, text: str | None = None) -> str:
     the library prior. A material-level candidate (target ``(table, *)``) or a shared group
     (``shoulder+elbow``) declares one ``param NAME ~ prior`` and adds the effect on every pair
     of ``table`` that lacks it (every joint of the group), each with that param as its strength;
-    a group with a strength per joint (``shoulder&elbow``) adds the effect on each joint."""
+    a group with a strength per joint (``shoulder&elbow``) adds the effect on each joint.
+    A sensor fault becomes its term in the observation's block (``sensor_terms``)."""
+    if cand.kind == "sensor":
+        from .sensor_terms import with_sensor
+
+        return with_sensor(scene, cand, text)
     decl = scene.effect_library[cand.name]
     filename = str(scene.path or "<string>")
     text = scene.source if text is None else text
@@ -95,6 +100,8 @@ def load_text(scene, text):
 
 def unknown_keys(scene, cand: Candidate) -> list[str]:
     """The unknowns that hold the candidate's strength once it is added (``with_effect``)."""
+    if cand.kind == "sensor":
+        return [f"{cand.target[0]}.{cand.name}"]
     if cand.shared:
         return [cand.shared_param]
     return [f"{p.key}.{strength_name(scene, cand)}" for p in cand.parts()]

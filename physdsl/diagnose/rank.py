@@ -354,6 +354,10 @@ def refit_start(model, idata, cand: Candidate, estimate: float | None) -> dict:
     smaller model's fit; a start drawn from the prior can instead land in another basin (a
     block given a friction coefficient that makes it stick cannot feel a change of mu).
     """
+    if cand.kind == "sensor":
+        from .sensor_terms import start_value
+
+        return {**point_estimate(model, idata), unknown_key(model.scene, cand): start_value(cand, estimate)}
     decl = model.scene.effect_library[cand.name].strength
     off = np.asarray(decl.off if decl.off is not None else 0.0, dtype=float)
     start = dict(point_estimate(model, idata))
@@ -459,13 +463,15 @@ def confirm(model, idata, ranked: list[Ranked], cands: dict, k: int, base_rms: f
     except REFIT_FAILURES:
         base_lfo = None  # leave-future-out unavailable: judged on ΔELPD and RMS alone
     done = 0
+    # a sensor fault is refitted where it leads the score tests (on top of the effects' refits)
+    first = next((r for r in ranked if not r.same_as), None)
     for r in ranked:
-        if r.kind != "effect" or r.same_as:
+        if r.same_as or (r.kind != "effect" and r is not first):
             continue
         explained = any(t.consistent_after for t in ranked)
-        if done >= k + EXTRA_REFITS or (done >= k and explained):
+        if r.kind == "effect" and (done >= k + EXTRA_REFITS or (done >= k and explained)):
             break
-        done += 1
+        done += r.kind == "effect"
         echo(f"  refit {done}: with {r.effect} on {r.target}")
         t0 = time.perf_counter()
         try:
@@ -629,11 +635,18 @@ def diagnose(model, idata, *, confirm_top: int = 2, alpha: float = 0.05, outdir=
             probs = model_probabilities({id(r): r.log_evidence for r in confirmed})
             for r in confirmed:
                 r.model_prob = probs[id(r)]
+    physics = []  # what physics says of fitted drag strengths (physical_scale)
+    if winner is not None:
+        from . import physical_scale
+
+        physics = physical_scale.notes(model, idata, [r for r in ranked if r.confirmed])
+        winner, ranked = _plausible_first(winner, ranked, physics)
     ranked = tie_twins(ranked)
     t2 = time.perf_counter()
     top = ranked[0] if ranked else None
     if winner is not None:
-        verdict = (f"missing effect: {winner.effect} on {winner.target} (score p = {p_value_text(winner)}; "
+        what = "missing effect" if winner.kind == "effect" else "sensor fault"
+        verdict = (f"{what}: {winner.effect} on {winner.target} (score p = {p_value_text(winner)}; "
                    f"ΔELPD {winner.delta_elpd:+.1f} ± {winner.delta_elpd_se:.1f}; residual RMS "
                    f"{winner.rms_before:.2f}σ → {winner.rms_after:.2f}σ)")
         rivals = [r for r in ranked if r.tied_with]
@@ -661,6 +674,8 @@ def diagnose(model, idata, *, confirm_top: int = 2, alpha: float = 0.05, outdir=
         where = "; ".join(f.message for f in report.flags[:3])
         verdict = ("nothing in the library explains the misfit"
                    + (f"; where and how the model fails: {where}" if where else ""))
+    if physics:
+        verdict += "; physically: " + "; ".join(physical_scale.text(j) for j in physics)
     if unusable:
         verdict = (f"the fit is not usable: the posterior draws of {', '.join(unusable)} spread "
                    "far wider than the prior (a failed approximation, e.g. Laplace across a kink "
@@ -675,6 +690,25 @@ def diagnose(model, idata, *, confirm_top: int = 2, alpha: float = 0.05, outdir=
         if winner is not None and winner.snippet:
             io.write_text(out / "fix.phys", winner.snippet + "\n")
     return diag
+
+
+def _plausible_first(winner, ranked, physics):
+    """Where the evidence ties the winner with a rival and physics finds the winner's fitted
+    strength implausible but the rival's plausible (linear drag at 10⁴ × Stokes against
+    quadratic drag with C_d 0.3), the rival wins; the tie stays recorded."""
+    judged = {(j["effect"], j["body"]): j["plausible"] for j in physics}
+    if judged.get((winner.effect, winner.target), True):
+        return winner, ranked
+    rival = next((r for r in ranked if r.tied_with == f"{winner.effect}@{winner.target}"
+                  and judged.get((r.effect, r.target)) is True), None)
+    if rival is None:
+        return winner, ranked
+    key = f"{rival.effect}@{rival.target}"
+    for r in ranked:
+        if r.tied_with:
+            r.tied_with = key
+    rival.tied_with, winner.tied_with = None, key
+    return rival, [rival] + [r for r in ranked if r is not rival]
 
 
 def _markdown(d: Diagnosis) -> str:

@@ -37,7 +37,7 @@ def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", cha
     """Fit, check, re-examine, diagnose and extend the scene until no addition, swap or drop
     improves the evidence; returns the rounds. ``revise``: effects of the user's scene
     (``effect@target``) to re-examine like those the loop adds."""
-    from .candidates import physics_candidates
+    from .candidates import physics_candidates, sensor_candidates
     from .rank import diagnose, fit_with_fallback, loo_reliability, start_setting, with_effect
     from .stepwise import judge, parse, reexamine
     from .workflow import point_estimate
@@ -117,11 +117,12 @@ def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", cha
         # a contact scene: billiards' second round ended at 7.85σ where the refit had 0.97σ)
         start = {**point_estimate(model, idata),
                  **w.fitted.get("values", {w.fitted["name"]: w.fitted["median"]})}
-        cand = next(c for c in physics_candidates(model.scene) if c.key == f"{w.effect}@{w.target}")
+        cand = next(c for c in physics_candidates(model.scene) + sensor_candidates(model.scene)
+                    if c.key == f"{w.effect}@{w.target}")
         current = _write_round(out, k + 1, with_effect(model.scene, cand), scene_path)
         # chosen against these effects; a group with a strength per joint is one effect per
         # joint from now on (each may be swapped or dropped on its own), a shared one stays one
-        for part in ([cand] if cand.shared else cand.parts()):
+        for part in ([cand] if cand.shared else cand.parts()) if cand.kind == "effect" else ():
             revisable[part.key] = (part, _effects(load(current)))
         echo(f"round {k}: added `{w.snippet.strip()}` -> {current}")
     _write_summary(out, rounds)

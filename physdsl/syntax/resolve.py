@@ -27,6 +27,7 @@ from .loops import annotate, expand, place
 from .mapping import check_label, clash_hint, unknown_target
 from .markers import MARKER_QUANTITIES, build_marker
 from .sensor import SENSOR_FIELDS, resolve_sensor
+from ..media import MEDIA
 from .units import (ANGLE, DIMLESS, LENGTH, MASS, TIME, Dim, UnitError, known_units, lookup,
                     parse_unit)
 
@@ -87,7 +88,7 @@ CAMERA_FIELDS = {"position": spec(LENGTH, (3,)), "look_at": spec(LENGTH, (3,)),
                  "up": spec(DIMLESS, (3,)), "fov": spec(ANGLE), "background": spec(DIMLESS, (3,))}
 LIGHT_FIELDS = {"direction": spec(DIMLESS, (3,)), "ambient": spec(DIMLESS, None),
                 "diffuse": spec(DIMLESS, None)}
-WORLD_FIELDS = {"gravity", "timestep", "duration", "substeps", "integrator", "contact"}
+WORLD_FIELDS = {"gravity", "timestep", "duration", "substeps", "integrator", "contact", "medium"}
 INTEGRATORS = ("semi_implicit_euler", "rk4")
 CONTACT_MODELS = ("lcp", "compliant")
 BODY_QUANTITIES = {"position": (("x", "y", "z"), LENGTH), "orientation": (("qw", "qx", "qy", "qz"), DIMLESS),
@@ -926,7 +927,8 @@ class Resolver:
                 self.errors.append(self.err(PhysTypeError, "'substeps' is a whole number >= 1",
                                             getattr(node, "span", fs["substeps"].span)))
         for key, attr, choices in (("integrator", "integrator", INTEGRATORS),
-                                   ("contact", "contact_model", CONTACT_MODELS)):
+                                   ("contact", "contact_model", CONTACT_MODELS),
+                                   ("medium", "medium", tuple(MEDIA))):
             if key in fs:
                 node = fs[key].value
                 word = node.name if isinstance(node, ast.Name) else None

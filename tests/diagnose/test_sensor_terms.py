@@ -51,7 +51,7 @@ def test_bad_sensor_terms_are_clear_errors(tmp_path, field, value, words):
     _placeholders(tmp_path)
     with pytest.raises(PhysError) as ex:
         load_scene(tmp_path, _with_terms(SHORT, **{field: value}))
-    assert words in str(ex.value).lower() or words in ex.value.format().lower()
+    assert words in str(ex.value).lower() or words in ex.value.render().lower()
 
 
 def test_delayed_reading_matches_interpolation_and_its_gradient():

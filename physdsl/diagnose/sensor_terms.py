@@ -1,0 +1,56 @@
+"""A sensor-fault candidate as a scene edit: the term (``offset``, ``gain``, ``delay``) written
+into its observation's block with a prior, so ``refine`` can add it and fit it like any unknown
+(``hinge.angle.offset``). Priors are broad against what one noise sigma or one sample interval
+can show: an offset ~ normal(0, 20 sigma), a gain ~ normal(1, 0.1), a delay ~ normal(0, 10 dt).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..syntax import edit
+from .candidates import Candidate
+
+OFFSET_SIGMAS = 20.0  # offset prior sd in noise sigmas
+GAIN_SD = 0.1
+DELAY_SAMPLES = 10.0  # delay prior sd in sample intervals
+OFF = {"offset": 0.0, "gain": 1.0, "delay": 0.0}  # the value of an exact sensor
+
+
+def _observation(scene, cand: Candidate):
+    return next(o for o in scene.observations if o.name == cand.target[0])
+
+
+def prior_text(scene, cand: Candidate) -> str:
+    """``~ normal(...)`` of the term, in SI numbers (no units needed)."""
+    obs = _observation(scene, cand)
+    if cand.name == "gain":
+        return f"~ normal(1, {GAIN_SD:g})"
+    if cand.name == "delay":
+        dt = float(np.median(np.diff(obs.times))) if len(obs.times) > 1 else 0.01
+        return f"~ normal(0, {DELAY_SAMPLES * dt:.6g})"
+    from ..expr import constant_value, is_constant
+
+    sigma = constant_value(obs.noise.scale) if is_constant(obs.noise.scale) else np.asarray(1.0)
+    sd = OFFSET_SIGMAS * np.broadcast_to(np.asarray(sigma, float), (obs.dim,))
+    if np.allclose(sd, sd[0]):
+        return f"~ normal(0, {float(sd[0]):.6g})"
+    vec = ", ".join(f"{v:.6g}" for v in sd)
+    return f"~ normal(({', '.join('0' for _ in sd)}), ({vec}))"
+
+
+def with_sensor(scene, cand: Candidate, text: str | None = None) -> str:
+    """The scene's text with the sensor term of ``cand`` in its observation's block."""
+    text = scene.source if text is None else text
+    return edit.replace_value(text, f"{cand.target[0]}.{cand.name}", prior_text(scene, cand),
+                              filename=str(scene.path or "<string>"))
+
+
+def unknown_key(cand: Candidate) -> str:
+    return f"{cand.target[0]}.{cand.name}"
+
+
+def start_value(cand: Candidate, estimate: float | None) -> float:
+    """Where the term's refit starts: exact, moved by the score test's one-step estimate
+    (a gain's estimate is g in measured = (1 + g) true)."""
+    step = float(estimate) if estimate is not None and np.isfinite(estimate) else 0.0
+    return OFF[cand.name] + step
