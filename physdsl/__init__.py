@@ -16,6 +16,10 @@ warnings.filterwarnings("ignore", message="ArviZ is undergoing", category=Future
 if os.environ.get("PHYSDSL_FLOAT32", "") not in ("1", "true", "yes"):
     jax.config.update("jax_enable_x64", True)
 
+from . import cache as _cache  # noqa: E402
+
+_cache.configure()  # compiled programs persist across runs (PHYSDSL_CACHE_DIR=off: not)
+
 from .errors import (  # noqa: E402
     DataError, InferenceError, ModelError, PhysError, PhysErrors, PhysImportError,
     PhysNameError, PhysStructureError, PhysSyntaxError, PhysTypeError, PhysUnitError, Span,

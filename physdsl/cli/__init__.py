@@ -9,6 +9,8 @@ from __future__ import annotations
 import importlib
 import importlib.util
 import sys
+from pathlib import Path
+from typing import Optional
 
 import typer
 
@@ -41,8 +43,16 @@ def _version_callback(value: bool) -> None:
 def _root(
     version: bool = typer.Option(False, "--version", callback=_version_callback, is_eager=True,
                                  help="Print the version and exit."),
+    cache_dir: Optional[Path] = typer.Option(
+        None, "--cache-dir", metavar="DIR", file_okay=False,
+        help="Folder of compiled programs kept across runs [default: PHYSDSL_CACHE_DIR, "
+             "else the user cache folder]; 'off' disables it."),
+    no_cache: bool = typer.Option(False, "--no-cache", help="Compile afresh, keep nothing."),
 ) -> None:
     """physdsl: describe a physical scene, fit it to measurements, find what it misses."""
+    from .. import cache
+
+    cache.configure("off" if no_cache else cache_dir)
 
 
 _registered = False
