@@ -20,11 +20,24 @@ candidate, then refits of the best ``--confirm`` physical candidates) and report
   CPU time of the case's process (wall time on a shared machine is inflated by other load;
   the load average is printed with it).
 
+With ``--mode refine`` (or ``both``, the default) the case's naive scene also goes through
+``refine`` (the CLI's defaults: MAP, up to 3 rounds) and the run reports
+
+- ``named_all.CASE``: 1 when the final scene has every hidden effect of ``truth.json``
+  (``hidden_effect`` and ``also_hidden``: law and target; ``X,*`` is met by the law on any pair
+  of ``X``), else 0,
+- ``final_rms_sigma.CASE``: the final round's residual RMS in noise units,
+- ``rounds.CASE``: the rounds refine fitted (round 0 is the naive scene), with each round's
+  action and RMS in ``actions.CASE``,
+- ``wall_s.CASE``: refine's wall time; ``refit.CASE``: each hidden strength in the final fit
+  (mean and 90% interval) against the truth.
+
 Each case runs in its own process with a time limit (``--timeout``, seconds), so a case that
 cannot finish is reported as such and the others still run; its refits are reported on stderr
 as they go.
 
 Run: .venv/bin/python benchmarks/diagnosis.py [--case thrown_ball [--case pendulum]] [--confirm 2]
+[--mode diagnose|refine|both]
 """
 from __future__ import annotations
 
@@ -130,6 +143,60 @@ def run_case(name: str, confirm: int, seed: int) -> dict:
     return out
 
 
+def _hidden(truth: dict) -> list[tuple[str, str]]:
+    """Every hidden effect of a case's truth as (law, target)."""
+    effects = [truth["hidden_effect"], *truth.get("also_hidden", [])]
+    return [(e["effect"], e["target"]) for e in effects]
+
+
+def _named(effects, law: str, target: str) -> bool:
+    """Whether a scene's (effect, target tuple) pairs contain the law on the target; ``X,*``
+    (one coefficient for every contact of X) is met by the law on any pair of X."""
+    parts = tuple(target.split(","))
+    if parts[-1] == "*":
+        return any(e == law and t[0] == parts[0] for e, t in effects)
+    return (law, parts) in effects
+
+
+def run_refine(name: str, seed: int) -> dict:
+    """Run ``refine`` on one case's naive scene (the CLI's defaults) and score the final scene
+    against the truth: every hidden effect named, final RMS, rounds, wall time, refitted values."""
+    import csv
+    import tempfile
+
+    import physdsl  # noqa: F401 - float64
+    from physdsl.diagnose.refine import refine
+    from physdsl.syntax import load
+
+    folder = CASES / name
+    truth = json.loads((folder / "truth.json").read_text())
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp:
+        rounds = refine(folder / "naive.phys", Path(tmp) / "refine", seed=seed,
+                        echo=lambda line: print(f"[{name}] {line}", file=sys.stderr, flush=True))
+        wall = time.perf_counter() - t0
+        last = rounds[-1]
+        effects = {(e.effect, tuple(e.target)) for e in load(last.scene).effects}
+        with (Path(last.scene).parent / "fit" / "summary.csv").open() as f:
+            summary = {r["name"]: r for r in csv.DictReader(f)}
+    refit = {}
+    for key, value in truth.get("parameters", {}).items():
+        if "@" not in key:
+            continue
+        rows = [summary[k] for k in summary if k == key or k.startswith(key + "[")]
+        refit[key] = {"truth": value, "mean": [float(r["mean"]) for r in rows] or None,
+                      "q5": [float(r["q5"]) for r in rows] or None,
+                      "q95": [float(r["q95"]) for r in rows] or None}
+    return {
+        "named_all": int(all(_named(effects, law, target) for law, target in _hidden(truth))),
+        "final_rms_sigma": last.rms_sigma, "rounds": len(rounds), "wall_s": wall,
+        "actions": [{"action": r.action, "added": r.added, "replaced": r.replaced,
+                     "rms_sigma": r.rms_sigma} for r in rounds],
+        "final_effects": sorted(f"{e}@{','.join(t)}" for e, t in effects if e != "gravity"),
+        "refit": refit, "final_verdict": last.verdict,
+    }
+
+
 def _fmt(v, spec="") -> str:
     if v is None:
         return "—"
@@ -143,10 +210,17 @@ def main() -> None:
     ap.add_argument("--confirm", type=int, default=2, help="physical candidates to refit")
     ap.add_argument("--timeout", type=float, default=2400.0, help="seconds per case")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--mode", choices=("diagnose", "refine", "both"), default="both",
+                    help="one diagnosis round, the refine loop, or both")
     ap.add_argument("--one", default="", help=argparse.SUPPRESS)  # worker mode
     args = ap.parse_args()
     if args.one:
-        print("RESULT " + json.dumps(run_case(args.one, args.confirm, args.seed)), flush=True)
+        res = {"case": args.one}
+        if args.mode != "refine":
+            res.update(run_case(args.one, args.confirm, args.seed))
+        if args.mode != "diagnose":
+            res.update(run_refine(args.one, args.seed))
+        print("RESULT " + json.dumps(res), flush=True)
         return
     known = sorted(p.name for p in CASES.iterdir() if (p / "truth.json").exists())
     unknown = [n for n in args.case if n not in known]
@@ -157,20 +231,28 @@ def main() -> None:
     for name in names:
         t0 = time.perf_counter()
         cmd = [sys.executable, __file__, "--one", name, "--confirm", str(args.confirm),
-               "--seed", str(args.seed)]
+               "--seed", str(args.seed), "--mode", args.mode]
         res = _run_child(name, cmd, args.timeout)
         res.setdefault("seconds", time.perf_counter() - t0)
         res["load"] = " ".join(f"{x:.1f}" for x in os.getloadavg())
         results.append(res)
         _print_lines(res)
     print()
-    print(_table(results))
+    if args.mode != "refine":
+        print(_table(results))
+    if args.mode != "diagnose":
+        print(_refine_table(results))
 
 
 def _print_lines(r: dict) -> None:
     n = r["case"]
     if "error" in r:
         print(f"error.{n}: {r['error']}", flush=True)
+        return
+    if "named_all" in r:
+        _print_refine(r)
+    if "score_rank" not in r:
+        print(f"load_average.{n}: {r['load']}", flush=True)
         return
     print(f"score_rank.{n}: {_fmt(r['score_rank'])} of {r['n_physical']} physical")
     print(f"rank.{n}: {_fmt(r['rank'])} of {r['n_candidates']}")
@@ -192,6 +274,46 @@ def _print_lines(r: dict) -> None:
           f"{r['seconds_score']:.0f}, confirm {r['seconds_confirm']:.0f})")
     print(f"cpu_seconds.{n}: {r['cpu_seconds']:.0f}")
     print(f"load_average.{n}: {r['load']}", flush=True)
+
+
+def _print_refine(r: dict) -> None:
+    n = r["case"]
+    print(f"named_all.{n}: {r['named_all']} (final effects: {', '.join(r['final_effects']) or 'none'})")
+    print(f"final_rms_sigma.{n}: {r['final_rms_sigma']:.3f}")
+    print(f"rounds.{n}: {r['rounds']}")
+    print(f"actions.{n}: {_actions(r)}")
+    print(f"wall_s.{n}: {r['wall_s']:.0f}")
+    for key, f in r["refit"].items():
+        got = ("not in the final scene" if f["mean"] is None else
+               ", ".join(f"{m:.4g} [{a:.4g}, {b:.4g}]" for m, a, b in zip(f["mean"], f["q5"], f["q95"])))
+        print(f"refit.{n}: {key} = {got} (truth {f['truth']})")
+    print(f"final_verdict.{n}: {r['final_verdict']}", flush=True)
+
+
+def _actions(r: dict) -> str:
+    """Each round's action and RMS, e.g. ``0: 4.10σ; 1: added quadratic_drag@ball 1.3σ``."""
+    out = []
+    for i, a in enumerate(r["actions"]):
+        what = "" if a["action"] is None else " " + a["action"] + " " + " for ".join(
+            f"{d['effect']}@{d['target']}" for d in (a["added"], a["replaced"]) if d)
+        out.append(f"{i}:{what} {a['rms_sigma']:.2f}σ")
+    return "; ".join(out)
+
+
+def _refine_table(results: list[dict]) -> str:
+    lines = ["| case | rounds | actions and RMS per round | named all | refitted (mean, 90%) vs truth "
+             "| wall (s) | load |", "|---|---|---|---|---|---|---|"]
+    for r in results:
+        if "named_all" not in r:
+            lines.append(f"| {r['case']} | | {r.get('error', '')} | | | {r['seconds']:.0f} | {r['load']} |")
+            continue
+        refit = "; ".join(
+            f"{k}: " + ("—" if f["mean"] is None else ", ".join(f"{m:.3g} [{a:.3g}, {b:.3g}]" for m, a, b
+                                                               in zip(f["mean"], f["q5"], f["q95"])))
+            + f" vs {f['truth']}" for k, f in r["refit"].items())
+        lines.append(f"| {r['case']} | {r['rounds']} | {_actions(r)} | {r['named_all']} | {refit} | "
+                     f"{r['wall_s']:.0f} | {r['load']} |")
+    return "\n".join(lines)
 
 
 def _table(results: list[dict]) -> str:
