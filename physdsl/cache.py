@@ -20,9 +20,9 @@ import jax
 ENV = "PHYSDSL_CACHE_DIR"
 OFF = ("off", "none", "0", "false", "no", "")
 
-# Programs compiling faster than this are not written (reading and hashing would cost about
-# as much); measured on the thrown ball, see docs/inference.md.
-MIN_COMPILE_S = 0.2
+# Every program is written, however fast it compiled: with a time threshold, which programs are
+# kept would depend on the machine's load, and a second run would still compile the rest.
+MIN_COMPILE_S = 0.0
 
 
 def default_dir() -> Path:

@@ -26,7 +26,7 @@ app = typer.Typer(
 
 # Subcommand modules, in the order they appear in --help.
 COMMAND_MODULES = (
-    "lint", "fmt", "infer", "check", "diagnose", "refine", "add_effect",
+    "lint", "fmt", "infer", "check", "diagnose", "refine", "add_effect", "design_experiment",
     "import_", "export", "sample", "render", "track",
 )
 
@@ -50,9 +50,10 @@ def _root(
     no_cache: bool = typer.Option(False, "--no-cache", help="Compile afresh, keep nothing."),
 ) -> None:
     """physdsl: describe a physical scene, fit it to measurements, find what it misses."""
-    from .. import cache
+    if no_cache or cache_dir is not None:  # else the default set up at import stands
+        from .. import cache
 
-    cache.configure("off" if no_cache else cache_dir)
+        cache.configure("off" if no_cache else cache_dir)
 
 
 _registered = False

@@ -155,7 +155,8 @@ def _fill(mask, z):
 
 def _objective(problem, names: tuple[str, ...], estimates: list[Estimate]):
     """(jitted x -> (misfit at t = 0 + negative log prior, gradient), mask of x's coordinates
-    that belong to ``names``), cached per scene structure and estimates."""
+    that belong to ``names``). The estimates' numbers are arguments of the compiled program,
+    not constants in it, so another recording of the same scene reuses it (physdsl/cache.py)."""
     from ..physics.simulator import observe
 
     model = problem.model
@@ -167,24 +168,28 @@ def _objective(problem, names: tuple[str, ...], estimates: list[Estimate]):
     mask = np.concatenate([np.full(int(np.prod(leaf.shape)), _key(path) in names)
                            for path, leaf in leaves]) if leaves else np.zeros(0, bool)
 
-    def misfit(x):
+    numbers = [tuple(None if a is None else jnp.asarray(a, dtype=float)
+                     for a in (e.value, e.value_sd, e.slope, e.slope_sd)) for e in estimates]
+
+    def misfit(x, numbers):
         u = unravel(x)
         values = constrain_fn(model.prior_values, (), {}, u)
         prm = sim.params(values)
         state = observe(sim.model, prm, prm["q0"], prm["v0"])
         total = potential_energy(model.prior_values, (), {}, u)
-        for e in estimates:
+        for e, (value, value_sd, slope, slope_sd) in zip(estimates, numbers):
             i_val, i_slope = SOURCES[e.quantity]
             idx = (sim.body_names if i_val < 4 else sim.joint_names).index(e.target)
             pred = state[i_val][idx].reshape(-1)
-            r = trajectory.residual(e.quantity, pred[None], jnp.asarray(e.value)[None])[0]
-            total = total + 0.5 * jnp.sum((r / e.value_sd) ** 2)
-            if e.slope is not None:
+            r = trajectory.residual(e.quantity, pred[None], value[None])[0]
+            total = total + 0.5 * jnp.sum((r / value_sd) ** 2)
+            if slope is not None:
                 ps = state[i_slope][idx].reshape(-1)
-                total = total + 0.5 * jnp.sum(((ps - e.slope) / e.slope_sd) ** 2)
+                total = total + 0.5 * jnp.sum(((ps - slope) / slope_sd) ** 2)
         return total
 
-    return jax.jit(jax.value_and_grad(misfit)), mask
+    jitted = jax.jit(jax.value_and_grad(misfit))
+    return (lambda x: jitted(x, numbers)), mask
 
 
 def prior_layout(model):
