@@ -525,7 +525,8 @@ def _refit(model, r: Ranked, cand: Candidate, base_loo, base_lfo, cutoff: float,
                 "values": {k: float(np.median(fit.posterior[k].values))
                            for k in unknown_keys(model.scene, cand)},
                 "q5": float(np.quantile(fit.posterior[key].values, 0.05)),
-                "q95": float(np.quantile(fit.posterior[key].values, 0.95))}
+                "q95": float(np.quantile(fit.posterior[key].values, 0.95)),
+                "point": {k: np.asarray(v).tolist() for k, v in point_estimate(new, fit).items()}}
     r.snippet = _snippet(format_source(model.scene.source), text)
     r.confirmed = bool(r.delta_elpd > 2 * max(r.delta_elpd_se, 1.0)
                        and (r.delta_lfo is None or r.delta_lfo > 0)
@@ -676,6 +677,13 @@ def diagnose(model, idata, *, confirm_top: int = 2, alpha: float = 0.05, outdir=
                    + (f"; where and how the model fails: {where}" if where else ""))
     if physics:
         verdict += "; physically: " + "; ".join(physical_scale.text(j) for j in physics)
+    tied = next((r for r in ranked if r.tied_with), None) if winner is not None else None
+    if tied is not None:  # the measurement that would separate them (design.experiment)
+        from ..design.experiment import for_tie
+
+        proposal = for_tie(model, cands, winner, tied)
+        if proposal is not None:
+            verdict += "; the experiment that would decide: " + proposal.text()
     if unusable:
         verdict = (f"the fit is not usable: the posterior draws of {', '.join(unusable)} spread "
                    "far wider than the prior (a failed approximation, e.g. Laplace across a kink "
