@@ -54,6 +54,7 @@ def test_proposed_throw_separates_the_laws(fitted_pair):
     d = np.abs(pa["ball.position"] - pb["ball.position"]) / 0.005
     assert float(d.max()) == pytest.approx(p.score, rel=1e-9)
     assert "linear and quadratic then differ by" in p.text()
+    print(p.text())
 
 
 def test_cli_usage_errors_before_any_fit(tmp_path, cli):
