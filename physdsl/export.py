@@ -840,19 +840,19 @@ def fit_quality(idata, names: Sequence[str]) -> tuple[float, float]:
     """(max r-hat, min bulk ESS) over the named unknowns' components (nan when undefined)."""
     import warnings
 
-    import arviz as az
+    from .infer import posterior_data
 
     if not names:
         return float("nan"), float("nan")
-    sub = idata.posterior[list(names)]
+    post = posterior_data.group(idata, "posterior")
+    r, e = [], []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        rhat = az.rhat(sub)
-        ess = az.ess(sub, method="bulk")
-    r = [np.nanmax(np.asarray(rhat[n].values)) if np.any(np.isfinite(rhat[n].values)) else np.nan
-         for n in names]
-    e = [np.nanmin(np.asarray(ess[n].values)) if np.any(np.isfinite(ess[n].values)) else np.nan
-         for n in names]
+        for n in names:
+            arr = np.asarray(post[n].values, dtype=float)
+            for x in np.moveaxis(arr.reshape(*arr.shape[:2], -1), 2, 0):  # (chain, draw) each
+                r.append(posterior_data.rhat(x))
+                e.append(posterior_data.ess(x, method="bulk"))
     r_max = float(np.nanmax(r)) if np.any(np.isfinite(r)) else float("nan")
     e_min = float(np.nanmin(e)) if np.any(np.isfinite(e)) else float("nan")
     return r_max, e_min

@@ -16,11 +16,11 @@ import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-import arviz as az
 import numpy as np
 
 from .. import io
 from ..errors import PhysError, PhysNameError
+from ..infer import posterior_data
 from ..syntax import format_source
 from .candidates import Candidate, material_pairs, physics_candidates, sensor_candidates
 from .edits import load_text as _load_text
@@ -231,15 +231,13 @@ def _expressible(scene, cand: Candidate) -> bool:
 
 def combined_loo(idata):
     """PSIS-LOO over every measurement time of every observation (pointwise values kept)."""
-    ll = idata.log_likelihood
+    ll = posterior_data.group(idata, "log_likelihood")
     arrays = [np.asarray(ll[v].values) for v in ll.data_vars]
     stacked = np.concatenate([a.reshape(a.shape[0], a.shape[1], -1) for a in arrays], axis=2)
-    data = az.from_dict(posterior={"_": np.zeros(stacked.shape[:2])},
-                        log_likelihood={"all": stacked})
     with warnings.catch_warnings():  # said in words by loo_reliability, not as a raw warning
         warnings.simplefilter("ignore", UserWarning)
         warnings.simplefilter("ignore", RuntimeWarning)  # constant points, handled below
-        loo = az.loo(data, pointwise=True)
+        loo = posterior_data.loo(stacked)
     return _constant_points_exact(loo, stacked.reshape(-1, stacked.shape[2]))
 
 
@@ -258,13 +256,13 @@ def _constant_points_exact(loo, ll):
         return loo
     loo_i = np.asarray(loo.loo_i).copy()
     loo_i[flat] = ll[:, flat].mean(axis=0)
-    loo.loo_i.values[:] = loo_i
-    loo.pareto_k.values[np.asarray(flat)] = 0.0
-    loo["elpd_loo"] = float(loo_i.sum())
+    loo.loo_i = loo_i
+    loo.pareto_k = np.where(flat, 0.0, loo.pareto_k)
+    loo.elpd_loo = float(loo_i.sum())
     m = ll.max(axis=0)
     lppd = float(np.sum(m + np.log(np.mean(np.exp(ll - m), axis=0))))
-    loo["p_loo"] = lppd - float(loo_i.sum())
-    loo["se"] = float(np.sqrt(loo_i.size * np.var(loo_i)))
+    loo.p_loo = lppd - float(loo_i.sum())
+    loo.se = float(np.sqrt(loo_i.size * np.var(loo_i)))
     return loo
 
 

@@ -25,7 +25,6 @@ from __future__ import annotations
 import functools
 import json
 
-import arviz as az
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -34,6 +33,7 @@ from numpyro.infer.util import constrain_fn, unconstrain_fn
 
 from ..compile import PRED_PREFIX
 from ..expr import references
+from . import posterior_data
 from .base import cached
 
 SHOWN = ("robust", "model")  # what summary.csv shows: ``--intervals``
@@ -197,12 +197,11 @@ def add_robust(idata, model, problem, flat: np.ndarray, constrained: dict, shown
     values = _constrain(model, problem)(jnp.asarray(Xr))
     post = {u: np.asarray(values[u]).reshape(chains, samples, *np.shape(values[u])[1:])
             for u in model.unknown_names}
-    ds = az.from_dict(posterior=post).posterior
     found = [fit for fit in fits if fit["kind"] in KERNELS]
-    ds.attrs.update({"method": METHOD, "max_widening": float(f.max(initial=1.0)),
-                     "residual_models": json.dumps(fits),
-                     "discrepancies": f"{len(found)} of {len(fits)} residual components"})
-    idata.add_groups({GROUP: ds})
+    posterior_data.add_group(idata, GROUP, post, {
+        "method": METHOD, "max_widening": float(f.max(initial=1.0)),
+        "residual_models": json.dumps(fits),
+        "discrepancies": f"{len(found)} of {len(fits)} residual components"})
     idata.attrs["intervals"] = shown
     return idata
 
@@ -275,9 +274,10 @@ def _constrain(model, problem):
 def shown_posterior(idata):
     """(posterior dataset, label) that summaries show: the widened draws where the run chose
     them (``--intervals robust``, the default) and has them, else the model's posterior."""
-    if idata.attrs.get("intervals", "model") == "robust" and GROUP in idata.groups():
-        return getattr(idata, GROUP), "robust"
-    return idata.posterior, "model"
+    if idata.attrs.get("intervals", "model") == "robust" and GROUP in \
+            posterior_data.group_names(idata):
+        return posterior_data.group(idata, GROUP), "robust"
+    return posterior_data.group(idata, "posterior"), "model"
 
 
 def describe(idata) -> str:

@@ -6,7 +6,6 @@ import json
 import platform
 from pathlib import Path
 
-import arviz as az
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -15,6 +14,7 @@ from .. import io
 from ..compile import OBS_PREFIX, PRED_PREFIX
 from .base import cached
 from .intervals import add_robust, shown_posterior
+from . import posterior_data
 
 
 PASS_CHUNK = 64  # draws per call of the posterior pass: one compile for any number of
@@ -22,7 +22,7 @@ PASS_CHUNK = 64  # draws per call of the posterior pass: one compile for any num
 
 
 def build_inference_data(model, problem, flat: np.ndarray, stats: dict, settings,
-                         on_chunk=None) -> az.InferenceData:
+                         on_chunk=None):
     """InferenceData with posterior (unknowns), predictive, observed data and pointwise log-lik.
 
     One jitted pass per draw: numpyro's postprocessing runs the program once (constrained
@@ -42,9 +42,9 @@ def build_inference_data(model, problem, flat: np.ndarray, stats: dict, settings
                 for o in model.observed}
     sample_stats = {k: np.asarray(v) for k, v in stats.items()}
     dims, coords = _dims(model, posterior)
-    idata = az.from_dict(posterior=posterior, posterior_predictive=preds, observed_data=observed,
-                         log_likelihood=loglik, sample_stats=sample_stats or None, dims=dims,
-                         coords=coords)
+    idata = posterior_data.from_dict(
+        {"posterior": posterior, "posterior_predictive": preds, "observed_data": observed,
+         "log_likelihood": loglik, "sample_stats": sample_stats}, dims=dims, coords=coords)
     return add_robust(idata, model, problem, flat, constrained,  # + posterior_robust
                       getattr(settings, "intervals", "robust"))
 
@@ -115,9 +115,9 @@ def summary_rows(model, idata) -> list[dict]:
             rows.append({
                 "name": label, "unit": u.unit, "mean": float(np.mean(x)), "sd": float(np.std(x)),
                 "q5": float(np.quantile(x, 0.05)), "q95": float(np.quantile(x, 0.95)),
-                "ess_bulk": _safe(lambda: az.ess(x, method="bulk")),
-                "ess_tail": _safe(lambda: az.ess(x, method="tail")),
-                "r_hat": _safe(lambda: az.rhat(x)) if x.shape[0] > 1 else float("nan"),
+                "ess_bulk": _safe(lambda: posterior_data.ess(x, method="bulk")),
+                "ess_tail": _safe(lambda: posterior_data.ess(x, method="tail")),
+                "r_hat": _safe(lambda: posterior_data.rhat(x)) if x.shape[0] > 1 else float("nan"),
                 "intervals": shown,
             })
     return rows
@@ -143,7 +143,7 @@ def warnings_in_words(rows: list[dict], idata, backend: str) -> list[str]:
         worst = min(low, key=lambda r: r["ess_bulk"])
         out.append(f"bulk ESS of {worst['name']} is only {worst['ess_bulk']:.0f}: estimates are noisy. "
                    "Run more --samples or more --chains.")
-    ss = getattr(idata, "sample_stats", {})
+    ss = posterior_data.group(idata, "sample_stats") or {}
     if "diverging" in ss:
         n = int(np.asarray(ss["diverging"].values).sum())
         if n:
@@ -277,9 +277,7 @@ def save_run(out: Path, model, idata, backend: str, settings, extra: dict | None
     from dataclasses import asdict
 
     paths = {}
-    with io.atomic_path(out / "posterior.nc") as tmp:
-        idata.to_netcdf(str(tmp), engine="h5netcdf") if _has_h5() else idata.to_netcdf(str(tmp))
-    paths["posterior"] = out / "posterior.nc"
+    paths["posterior"] = posterior_data.write(idata, out / "posterior.nc")
     rows = summary_rows(model, idata)
     buf = _io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=list(rows[0]) if rows else ["name"])
@@ -304,7 +302,7 @@ def save_run(out: Path, model, idata, backend: str, settings, extra: dict | None
         "settings": asdict(settings),
         "seed": settings.seed,
         "versions": {"physdsl": __version__, "jax": _jax.__version__, "numpyro": numpyro.__version__,
-                     "blackjax": blackjax.__version__, "arviz": az.__version__,
+                     "blackjax": blackjax.__version__, "arviz": posterior_data.VERSION,
                      "python": platform.python_version()},
         "warnings": warnings_in_words(rows, idata, backend),
         **(extra or {}),
@@ -314,16 +312,9 @@ def save_run(out: Path, model, idata, backend: str, settings, extra: dict | None
     return paths
 
 
-def _has_h5() -> bool:
-    try:
-        import h5netcdf  # noqa: F401
-        return True
-    except ImportError:
-        return False
-
-
-def load_run(run_dir) -> tuple[az.InferenceData, dict]:
-    """Read a run folder written by ``save_run``: (InferenceData, run.json contents)."""
+def load_run(run_dir) -> tuple[object, dict]:
+    """Read a run folder written by ``save_run``: (the posterior, an arviz InferenceData or
+    DataTree by version: ``posterior_data``; run.json contents)."""
     from ..errors import UsageError
 
     run_dir = Path(run_dir)
@@ -331,6 +322,6 @@ def load_run(run_dir) -> tuple[az.InferenceData, dict]:
     if not post.exists():
         raise UsageError(f"'{run_dir}' holds no posterior.nc",
                          hint="give the -o folder of a finished `physdsl infer` run")
-    idata = az.from_netcdf(str(post))
+    idata = posterior_data.read(post)
     meta = json.loads((run_dir / "run.json").read_text()) if (run_dir / "run.json").exists() else {}
     return idata, meta

@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import arviz as az
 import jax
 import numpy as np
 import pytest
@@ -14,6 +13,7 @@ from physdsl import syntax
 from physdsl.compile import compile_scene
 from physdsl.errors import PhysError, UsageError
 from physdsl.export import export
+from physdsl.infer import posterior_data
 from physdsl.sample import parameter_values
 
 DATA = Path(__file__).resolve().parent / "data"
@@ -32,7 +32,7 @@ def _toss_posterior(seed=0, chains=4, draws=500, corr=-0.7):
     y = rng.multivariate_normal(mean, c * np.outer(sd, sd), (chains, draws))
     post = {"ball.mass": np.exp(y[..., 0]), "h0": y[..., 1], "ball.velocity": y[..., 2:5],
             "quadratic_drag@ball.coefficient": np.exp(y[..., 5])}
-    return az.from_dict(posterior=post, dims={"ball.velocity": ["axis"]}), post
+    return posterior_data.from_dict({"posterior": post}, dims={"ball.velocity": ["axis"]}), post
 
 
 def _flat(post):
@@ -118,7 +118,7 @@ def test_support_respected_in_10000_draws(tmp_path):
         post = {"ball.mass": np.exp(y[..., 0]), "h0": rng.normal(1.2, 0.01, (2, 1000)),
                 "ball.velocity": rng.normal([2, 0, 3], 0.03, (2, 1000, 3)),
                 "quadratic_drag@ball.coefficient": 0.02 / (1 + np.exp(-y[..., 1]))}
-        idata = az.from_dict(posterior=post, dims={"ball.velocity": ["axis"]})
+        idata = posterior_data.from_dict({"posterior": post}, dims={"ball.velocity": ["axis"]})
         proto = _proto(tmp_path, scene_path, idata, f"proto{corr}.phys", widen=3.0)
         drawn = _draw_parameters(proto)
         assert len(drawn["ball.mass"]) == N

@@ -5,7 +5,6 @@ import csv
 import json
 from pathlib import Path
 
-import arviz as az
 import numpy as np
 import pytest
 
@@ -14,6 +13,7 @@ from physdsl.cli import main
 from physdsl.compile import compile_scene
 from physdsl.errors import UsageError
 from physdsl.expr import constant_value
+from physdsl.infer import posterior_data
 from physdsl.export import export
 from physdsl.sample import sample
 
@@ -27,7 +27,7 @@ def _posterior(seed=0):
     post = {"ball.mass": np.exp(y[..., 0]), "h0": y[..., 1],
             "ball.velocity": rng.normal([2.0, 0.0, 3.0], 0.05, (2, 300, 3)),
             "quadratic_drag@ball.coefficient": np.exp(rng.normal(np.log(0.004), 0.1, (2, 300)))}
-    return az.from_dict(posterior=post, dims={"ball.velocity": ["axis"]})
+    return posterior_data.from_dict({"posterior": post}, dims={"ball.velocity": ["axis"]})
 
 
 @pytest.fixture(scope="module")
@@ -93,7 +93,7 @@ def test_summary_and_refusing_a_non_empty_folder(generated):
 def test_cli_export_and_sample(tmp_path):
     run = tmp_path / "run"
     run.mkdir()
-    _posterior().to_netcdf(str(run / "posterior.nc"))
+    posterior_data.write(_posterior(), run / "posterior.nc")
     (run / "run.json").write_text(json.dumps({"scene": str(TOSS), "scene_sha256": "abc",
                                               "data_sha256": {"toss.csv": "def"},
                                               "backend": "nuts", "seed": 3}))

@@ -40,7 +40,7 @@ def split_scene(tmp_path_factory):
 
 
 def test_map_writes_the_mode_and_names_the_flat_direction(split_scene, cli, tmp_path):
-    import arviz as az
+    from physdsl.infer import posterior_data
 
     out = tmp_path / "run"
     code, stdout, err = cli("infer", split_scene, "-o", out, *RUN)
@@ -59,7 +59,7 @@ def test_map_writes_the_mode_and_names_the_flat_direction(split_scene, cli, tmp_
     assert weights["table"] == pytest.approx(-weights["above"], rel=1e-3)  # table - above
     assert run["fit_quality"]["rms_sigma"] < 1.5  # the mode itself fits the data
 
-    post = az.from_netcdf(str(out / "posterior.nc")).posterior
+    post = posterior_data.group(posterior_data.read(out / "posterior.nc"), "posterior")
     assert post.sizes["chain"] == 1 and post.sizes["draw"] == 1  # the mode, a single draw
     height = float(post["table"].values.ravel()[0] + post["above"].values.ravel()[0])
     assert height == pytest.approx(1.0, abs=0.02)
@@ -71,13 +71,13 @@ def test_map_writes_the_mode_and_names_the_flat_direction(split_scene, cli, tmp_
 
 @pytest.mark.slow  # a second fit (MAP, then random-walk Metropolis): about a minute
 def test_fallback_rmh_samples_from_the_mode(split_scene, cli, tmp_path):
-    import arviz as az
+    from physdsl.infer import posterior_data
 
     out = tmp_path / "run"
     code, _, err = cli("infer", split_scene, "-o", out, *RUN, "--fallback", "rmh")
     assert code == 0, err
     assert "random-walk Metropolis" in err
-    post = az.from_netcdf(str(out / "posterior.nc")).posterior
+    post = posterior_data.group(posterior_data.read(out / "posterior.nc"), "posterior")
     assert post.sizes["draw"] == 20
     height = (post["table"] + post["above"]).values
     assert np.all(np.abs(height - 1.0) < 0.05)  # every draw keeps the seen sum

@@ -148,9 +148,8 @@ def test_an_unrolled_module_prints_as_the_hand_written_scene():
 
 def test_export_writes_a_looped_scene_out(tmp_path):
     """A posterior over unknowns inside a loop becomes their fitted priors, one per iteration."""
-    import arviz as az
-
     from physdsl.export import export
+    from physdsl.infer import posterior_data
 
     src = tmp_path / "chain.phys"
     src.write_text("scene s {\n  world { duration: 0.1 s }\n  for i in 1..2 {\n    body b{i} { "
@@ -159,7 +158,7 @@ def test_export_writes_a_looped_scene_out(tmp_path):
     rng = np.random.default_rng(0)
     post = {"b1.mass": np.exp(rng.normal(0.0, 0.01, (2, 200))),
             "b2.mass": np.exp(rng.normal(1.0, 0.01, (2, 200)))}
-    text = export(src, az.from_dict(posterior=post), out_path=tmp_path / "proto.phys")
+    text = export(src, posterior_data.from_dict({"posterior": post}), out_path=tmp_path / "proto.phys")
     (tmp_path / "proto.phys").write_text(text)
     scene = load(tmp_path / "proto.phys")
     priors = {u.name: u.prior for u in scene.unknowns}

@@ -1,10 +1,10 @@
 """``physdsl render``: frames of a scene, refusal to overwrite, posterior draws as a grid."""
-import arviz as az
 import cv2
 import numpy as np
 import pytest
 
 from physdsl.cli import main
+from physdsl.infer import posterior_data
 
 from scene_helpers import TOSS
 
@@ -56,7 +56,7 @@ def test_render_posterior_grid(scene_file, tmp_path):
     run = tmp_path / "run"
     run.mkdir()
     draws = {"h0": np.linspace(0.9, 1.3, 6).reshape(2, 3)}
-    az.from_dict(posterior=draws).to_netcdf(str(run / "posterior.nc"))
+    posterior_data.write(posterior_data.from_dict({"posterior": draws}), run / "posterior.nc")
     out = tmp_path / "grid.png"
     assert main(["render", str(scene_file), "--posterior", str(run), "--draws", "4",
                  "--time", "0", "-o", str(out)]) == 0

@@ -1,0 +1,122 @@
+"""The posterior container across arviz's two APIs: ``InferenceData`` (arviz 0.18-0.23) and
+xarray ``DataTree`` (arviz >= 1.0: arviz_base, arviz_stats).
+
+Every part of physdsl builds, reads, writes, summarises and scores posteriors through these
+functions, so the rest of the code is written once. A group read back is an xarray
+``Dataset`` under both; the file layout is the same (one netCDF group per arviz group, the
+run's attributes on the root), so a posterior.nc written under one version reads under the
+other. The version is looked at once, here, at import time.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import arviz as az
+import numpy as np
+
+from .. import io
+
+VERSION = az.__version__
+MODERN = int(VERSION.split(".")[0]) >= 1  # arviz >= 1.0: DataTree, from_dict({group: ...})
+
+
+def from_dict(groups: dict[str, dict | None], dims=None, coords=None):
+    """A posterior object from ``{group: {name: array}}`` (posterior-like groups: arrays
+    (chain, draw, ...); ``observed_data``: no sample dimensions). Empty groups are left out."""
+    groups = {g: v for g, v in groups.items() if v}
+    if MODERN:
+        return az.from_dict(groups, dims=dims, coords=coords)
+    return az.from_dict(**groups, dims=dims, coords=coords)
+
+
+def group_names(idata) -> list[str]:
+    """Names of the groups ``idata`` holds (``posterior``, ``log_likelihood``, ...)."""
+    return list(idata.children) if MODERN else list(idata.groups())
+
+
+def group(idata, name: str):
+    """The group ``name`` of ``idata`` as an xarray Dataset, or None where it has none."""
+    if name not in group_names(idata):
+        return None
+    return idata[name].to_dataset() if MODERN else getattr(idata, name)
+
+
+def add_group(idata, name: str, variables: dict, attrs: dict | None = None):
+    """Add a posterior-like group ``name`` (arrays (chain, draw, ...)) to ``idata``, in place."""
+    ds = group(from_dict({"posterior": variables}), "posterior")
+    ds.attrs.update(attrs or {})
+    if MODERN:
+        import xarray as xr
+
+        idata[name] = xr.DataTree(ds)
+    else:
+        idata.add_groups({name: ds})
+    return idata
+
+
+def _engine() -> str:
+    try:
+        import h5netcdf  # noqa: F401
+        return "h5netcdf"
+    except ImportError:
+        return "netcdf4"
+
+
+def write(idata, path) -> Path:
+    """Write ``idata`` as netCDF (groups as netCDF groups) atomically."""
+    path = Path(path)
+    with io.atomic_path(path) as tmp:
+        idata.to_netcdf(str(tmp), engine=_engine())
+    return path
+
+
+def read(path):
+    """Read a posterior file written by ``write`` (under either arviz version) into memory."""
+    if MODERN:
+        import xarray as xr
+
+        with xr.open_datatree(str(path), engine=_engine()) as tree:
+            return tree.load()
+    return az.from_netcdf(str(path), engine=_engine())
+
+
+def ess(x, method: str = "bulk") -> float:
+    """Effective sample size of the draws ``x`` (chain, draw): ``bulk``, or ``tail`` (the
+    smaller of the 5% and 95% quantiles' ESS: arviz 0.x's default, explicit for 1.x)."""
+    prob = {"prob": (0.05, 0.95)} if method == "tail" else {}
+    return float(az.ess(np.asarray(x, dtype=float), method=method, **prob))
+
+
+def rhat(x) -> float:
+    """Rank-normalised split r-hat of the draws ``x`` (chain, draw)."""
+    return float(az.rhat(np.asarray(x, dtype=float)))
+
+
+@dataclass
+class Loo:
+    """PSIS-LOO over n points: the estimate, its standard error, the effective number of
+    parameters and the pointwise values and Pareto k (length n)."""
+    elpd_loo: float
+    se: float
+    p_loo: float
+    loo_i: np.ndarray
+    pareto_k: np.ndarray
+
+
+def loo(ll: np.ndarray) -> Loo:
+    """PSIS-LOO (arviz) of a pointwise log-likelihood ``ll`` (chain, draw, n). The standard
+    error is sqrt(n var(loo_i)) under both versions, so a ΔELPD reads the same."""
+    ll = np.asarray(ll, dtype=float)
+    data = from_dict({"posterior": {"_": np.zeros(ll.shape[:2])},
+                      "log_likelihood": {"all": ll}})
+    r = az.loo(data, pointwise=True)
+    if MODERN:
+        elpd, p, pointwise = r.elpd, r.p, r.elpd_i
+    else:
+        elpd, p, pointwise = r["elpd_loo"], r["p_loo"], r["loo_i"]
+    pointwise = np.asarray(pointwise, dtype=float).ravel()
+    se = float(np.sqrt(pointwise.size * np.var(pointwise)))  # arviz 0.x's (1.x: ddof=1)
+    k = np.asarray(r.pareto_k, dtype=float).ravel()
+    k = np.where(np.isnan(k), np.inf, k)  # no tail could be fitted: 0.x says inf, 1.x NaN
+    return Loo(float(elpd), se, float(p), pointwise, k)
