@@ -3,12 +3,21 @@ must be the installed wheel, not this checkout (a wheel missing its grammar woul
 pass here and fail for every user)."""
 from __future__ import annotations
 
+import atexit
 import os
+import shutil
+import tempfile
 from pathlib import Path
 
 import pytest
 
-import physdsl
+# Compiled programs go to a folder of this session (removed at exit), never the user's cache;
+# set before physdsl is imported (it sets up JAX's persistent cache then: physdsl/cache.py).
+if os.environ.get("PHYSDSL_CACHE_DIR", "").lower() != "off":
+    os.environ["PHYSDSL_CACHE_DIR"] = tempfile.mkdtemp(prefix="physdsl-tests-cache-")
+    atexit.register(shutil.rmtree, os.environ["PHYSDSL_CACHE_DIR"], ignore_errors=True)
+
+import physdsl  # noqa: E402
 
 CHECKOUT = Path(__file__).resolve().parent.parent
 
