@@ -57,7 +57,9 @@ def with_effect(scene, cand: Candidate, text: str | None = None) -> str:
     decl = scene.effect_library[cand.name]
     filename = str(scene.path or "<string>")
     text = scene.source if text is None else text
-    prior = prior_text(decl.strength.prior)
+    from .physical_scale import prior_text as physical_prior
+
+    prior = physical_prior(scene, cand) or prior_text(decl.strength.prior)
     places = targets(scene, cand)
     strength = prior
     if cand.shared:

@@ -118,3 +118,18 @@ def notes(model, idata, ranked) -> list[dict]:
         out.append(judge_drag(model.scene, r.effect, r.target, float(r.fitted["median"]),
                               cache[r.target]))
     return out
+
+
+CD_PRIOR_SD = 1.0  # half-normal sd of C_d: covers 0.05-2 (its 4% and 95% points)
+
+
+def prior_text(scene, cand) -> str | None:
+    """The physical prior of a candidate's strength where physics gives a scale, else None
+    (the library prior serves): quadratic drag on a body ~ half_normal(½ρ C_d A) with C_d's sd
+    ``CD_PRIOR_SD``, in the world's medium."""
+    if cand.kind != "effect" or cand.name != "quadratic_drag" or len(cand.target) != 1:
+        return None
+    body = next((b for b in scene.bodies if b.name == cand.target[0]), None)
+    c = quadratic(scene, body, CD_PRIOR_SD) if body is not None else None
+    return f"~ half_normal({c:.6g})" if c else None
+

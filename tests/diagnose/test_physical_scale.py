@@ -76,3 +76,17 @@ def test_thrown_football_linear_drag_is_implausible_and_quadratic_named(tmp_path
     assert "physically implausible" in diag.verdict and "Stokes" in diag.verdict
     tied = any(r.tied_with for r in diag.ranking)
     assert diag.winner.effect == "quadratic_drag" or tied, diag.verdict
+
+
+def test_quadratic_drag_candidate_gets_its_prior_from_size_and_medium():
+    from physdsl.diagnose.candidates import Candidate
+    from physdsl.diagnose.edits import with_effect
+
+    for medium, rho in (("air", 1.204), ("water", 998.0)):
+        scene = _scene(medium if medium != "air" else None)
+        text = with_effect(scene, Candidate("effect", "quadratic_drag", ("ball",)))
+        sd = 0.5 * rho * 1.0 * math.pi * 0.11**2
+        assert f"coefficient ~ half_normal({sd:.6g})" in text
+    # no physical scale for linear drag's candidate yet: the library prior
+    text = with_effect(_scene(), Candidate("effect", "linear_drag", ("ball",)))
+    assert "half_normal(0.05)" in text
