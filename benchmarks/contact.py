@@ -4,10 +4,12 @@ lcp_solve_ms.c8_n12 (one jitted solve_lcp_step, C=8 contacts, n=12, F=4), implic
 unrolled gradient times, unrolled_over_implicit_grad.lcp, and fd_over_implicit_grad.lcp: the
 time of a central finite-difference gradient (2 solves per parameter over every entry of M,
 v_free, mu and e, timed by running them) over the time of one implicit gradient.
-Run: .venv/bin/python benchmarks/contact.py
+Run: .venv/bin/python benchmarks/contact.py; ``--idle``: the cost of a contact that never
+comes near (``idle_contact``).
 """
 from __future__ import annotations
 
+import json
 import time
 
 import jax
@@ -97,5 +99,42 @@ def main():
     print(f"fd_vs_implicit_max_rel_err.lcp: {rel:.2e}")
 
 
+def idle_contact(chains: int = 2, repeat: int = 30):
+    """A contact that never comes near costs (next to nothing): the README's thrown ball
+    (examples/thrown_ball, RK4, 1430 steps, 7 unknowns) with and without its ground plane, the
+    log density's value and gradient (jit, float64), alone and vmapped over ``chains`` chains
+    as the samplers run them. Prints ``idle_contact_ms.*`` and ``ground_over_none.*``."""
+    import dataclasses
+    from pathlib import Path
+
+    from physdsl.compile import compile_scene
+    from physdsl.infer.problem import model_problem, start_position
+
+    path = Path(__file__).resolve().parents[1] / "examples" / "thrown_ball" / "thrown_ball.phys"
+    scene = physdsl.load(path)
+    truth = json.loads((path.parent / "truth.json").read_text())["unknowns"]
+    ms = {}
+    for name, sc in (("ground", scene), ("none", dataclasses.replace(scene, contact_pairs=()))):
+        model = compile_scene(sc)
+        problem = model_problem(model)
+        # the truth and throws near it: the ball lands after the recording ends (ground idle)
+        x = jnp.stack([start_position(problem, jax.random.PRNGKey(0), {
+            **truth, "ball.velocity": np.add(truth["ball.velocity"], (-0.1 * i, 0, 0.1 * i))})
+            for i in range(chains)])
+        vg = jax.value_and_grad(problem.logdensity)
+        ms[f"single.{name}"] = 1e3 * timed(jax.jit(vg), x[0], problem.data, repeat=repeat)
+        ms[f"vmap{chains}.{name}"] = 1e3 * timed(jax.jit(jax.vmap(vg, in_axes=(0, None))), x,
+                                                 problem.data, repeat=repeat)
+    for k, v in ms.items():
+        print(f"idle_contact_ms.{k}: {v:.1f}")
+    for k in ("single", f"vmap{chains}"):
+        print(f"ground_over_none.{k}: {ms[k + '.ground'] / ms[k + '.none']:.2f}")
+
+
 if __name__ == "__main__":
-    main()
+    import sys
+
+    if sys.argv[1:] == ["--idle"]:
+        idle_contact()
+    else:
+        main()

@@ -100,23 +100,28 @@ def _flight(model, prm, state, t, h, a1, v_free):
     return state._replace(q=integrate_q(model, state.q, 0.5 * (state.v + v_free), h), v=v_free)
 
 
-def _either(near, contact, apart, forward_only: bool):
-    """``contact()`` where ``near``, else ``apart()``: ``lax.cond``; with ``forward_only``, a
-    while loop of at most one trip over ``contact`` after ``apart``. Under ``vmap`` (chains) a
-    cond with a batched predicate runs both branches in every step; the loop runs ``contact``
-    only in the steps where some member has a contact near, so a contact that never comes near
-    costs its detection alone. A while loop has no reverse-mode derivative: only for rollouts
-    differentiated in forward mode (``simulator.forward_mode``)."""
+def either(near, contact, apart, operand, forward_only: bool):
+    """``contact(operand)`` where ``near``, else ``apart(operand)``: ``lax.cond``; with
+    ``forward_only``, a while loop of at most one trip over ``contact`` after ``apart``. Under
+    ``vmap`` (chains) a cond with a batched predicate runs both branches every time; the loop
+    runs ``contact`` only where some member needs it, so a contact that never comes near costs
+    its detection alone. The operand passes a barrier tied to the loop's flag, or XLA would
+    hoist ``contact`` (invariant in the loop) out of the loop and run it always. A while loop
+    has no reverse-mode derivative: only where differentiated in forward mode
+    (``simulator.forward_mode``)."""
     if not forward_only:
-        return jax.lax.cond(near, lambda _: contact(), lambda _: apart(), None)
-    _, out = jax.lax.while_loop(lambda c: c[0], lambda c: (jnp.zeros_like(near), contact()),
-                                (near, apart()))
-    return out
+        return jax.lax.cond(near, contact, apart, operand)
+
+    def body(c):
+        _, x = jax.lax.optimization_barrier((c[0], operand))
+        return jnp.zeros_like(near), contact(x)
+
+    return jax.lax.while_loop(lambda c: c[0], body, (near, apart(operand)))[1]
 
 
 def _lcp_step(model, prm, state, t, h, forward_only=False):
     """The LCP contact step where some candidate is within reach (``cs.closing_within``), else
-    the scene's integrator without contact forces (``_flight``), by ``_either``."""
+    the scene's integrator without contact forces (``_flight``), by ``either``."""
     q, v = state.q, state.v
     kin = kinematics(model, prm, q, v, with_jac=True)
     load = applied_load(model, prm, kin, state, t, t)
@@ -124,16 +129,18 @@ def _lcp_step(model, prm, state, t, h, forward_only=False):
     v_free = v + h * a
     con = cs.closing_within(cs.detect_all(model, prm, kin, v), v_free, h)
 
-    def contact():
+    def contact(o):
+        prm, q, v, kin, con, v_free = o
         v_next, v_position, cf = cs.lcp_velocity(model, con, joint_mass_matrix(model, prm, kin),
                                                  v, v_free, h)
         return State(integrate_q(model, q, v_position, h), v_next, cf, con.normal)
 
-    def apart():
+    def apart(o):
         s = _flight(model, prm, state, t, h, a, v_free)
         return State(s.q, s.v, jnp.zeros(model.ncon, v.dtype), con.normal)
 
-    return _either(jnp.any(con.active), contact, apart, forward_only)
+    return either(jnp.any(con.active), contact, apart, (prm, q, v, kin, con, v_free),
+                  forward_only)
 
 
 def _compliant_step(model, prm, state, t, h, forward_only=False):
@@ -144,25 +151,27 @@ def _compliant_step(model, prm, state, t, h, forward_only=False):
     load = applied_load(model, prm, kin, state, t, t)
     con = cs.detect_all(model, prm, kin)
 
-    def contact():
+    def contact(o):
+        prm, q, v, kin, con, load = o
         M = None if con.inv_mass is not None else joint_mass_matrix(model, prm, kin)
         tau, cf = cs.compliant_tau(model, con, M, v)
         v_next = v + h * accel(model, prm, kin, load, tau)
         return State(integrate_q(model, q, v_next, h), v_next, cf, con.normal)
 
+    operand = (prm, q, v, kin, con, load)
     if model.integrator != "rk4":
-        return contact()
+        return contact(operand)
 
-    def apart():
+    def apart(o):
         s = _rk4(model, prm, state, t, h, accel(model, prm, kin, load))
         return State(s.q, s.v, jnp.zeros(model.ncon, v.dtype), con.normal)
 
-    return _either(jnp.any(con.active), contact, apart, forward_only)
+    return either(jnp.any(con.active), contact, apart, operand, forward_only)
 
 
 def step(model: Model, prm: dict, state: State, t, h, forward_only: bool = False):
     """Advance ``state`` from time t by h (one substep); ``forward_only``: the rollout is
-    differentiated in forward mode alone (contact steps skipped under vmap, ``_either``)."""
+    differentiated in forward mode alone (contact steps skipped under vmap, ``either``)."""
     if model.ncon:
         if model.contact_model == "lcp":
             return _lcp_step(model, prm, state, t, h, forward_only)

@@ -17,7 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..scene import Scene
-from . import central
+from . import central, idle
 from .forward import FORWARD_MODE_MAX, forward_mode
 from .markers import marker_tracks
 from .integrate import State, kinematics, step
@@ -71,6 +71,8 @@ class Simulator:
         n = model.nsteps
         self.times = np.arange(n + 1) * model.dt
         self.integrator = model.integrator  # between contacts (``integrate.step``)
+        free = idle.free_scene(scene, model)  # contacts that may never come near (``idle``)
+        self._free = None if free is None else Simulator(free, build_model(free))
         self.trace_count = 0
         self._jit = jax.jit(self._simulate, static_argnums=1)
 
@@ -86,7 +88,7 @@ class Simulator:
         C = model.ncon
         s0 = State(prm["q0"].astype(dtype), prm["v0"].astype(dtype), jnp.zeros(C, dtype),
                    jnp.zeros((C, 3), dtype))
-        # not checkpointed: differentiated in forward mode alone (``integrate._either``)
+        # not checkpointed: differentiated in forward mode alone (``integrate.either``)
         traj = self._scan(lambda s, t, h: step(model, prm, s, t, h, not checkpoint), s0,
                           checkpoint)
         return traj.q, traj.v, traj.contact_force
@@ -135,10 +137,16 @@ class Simulator:
             return forward_mode(lambda v: self._rollout(v, fields, False))(values)
         return self._rollout(values, fields, True)
 
-    def _rollout(self, values, fields, checkpoint: bool) -> Rollout:
-        """The Rollout for ``values`` (only ``fields``, if given, are sure to be filled)."""
+    def _rollout(self, values, fields, checkpoint: bool, fly_first: bool = True) -> Rollout:
+        """The Rollout for ``values`` (only ``fields``, if given, are sure to be filled);
+        ``fly_first``: contact scenes of free bodies fly first (``idle``)."""
         model = self.model
         prm = evaluate_params(self.scene, model, values)
+        if fly_first and self._free is not None:
+            return idle.free_unless_near(
+                model, prm, self._free._rollout(values, fields, checkpoint),
+                lambda vals: self._rollout(vals, fields, checkpoint, False), values,
+                not checkpoint)
         t = jnp.arange(model.nsteps + 1, dtype=prm["ref_pos"].dtype) * model.dt
         if central.decoupled(model):
             # each part on its own, the rotation only for a caller that reads it
