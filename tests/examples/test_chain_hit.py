@@ -66,7 +66,7 @@ def test_the_default_start_finds_the_collision_basin(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("variant", ["", "damped"])
+@pytest.mark.parametrize("variant", ["", "damped"], ids=["undamped", "damped"])
 def test_map_starts_fit_the_whole_recording(variant):
     """MAP's multistart (the default four starts, 500 steps each) on the naive scene (no
     damping): at most 1.2σ where the chain has no damping (measured 1.14σ). Where the hinges
