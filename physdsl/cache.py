@@ -7,7 +7,7 @@ cache the user set up for JAX is kept) > the user's cache folder (platformdirs:
 ``$XDG_CACHE_HOME/physdsl/jax``, ``~/.cache/physdsl/jax``). ``off`` (or ``--no-cache``)
 disables it. JAX writes each entry under a key that hashes the compiled program, the compile
 options, the jax/XLA versions and the device, so a changed scene structure is a new entry,
-never a stale hit.
+never a stale hit. Entries are written atomically, so processes may share the folder.
 """
 from __future__ import annotations
 
@@ -62,7 +62,39 @@ def configure(cache_dir: Optional[str | os.PathLike] = None) -> Optional[Path]:
         jax.config.update("jax_compilation_cache_dir", os.fspath(path))
         jax.config.update("jax_persistent_cache_min_compile_time_secs", MIN_COMPILE_S)
     cc.reset_cache()  # the next compile opens the cache at the new place (or none)
+    _write_entries_atomically()
     return path
+
+
+def _write_entries_atomically() -> None:
+    """Make JAX's cache folder safe to share between processes.
+
+    jax 0.10 writes an entry with ``Path.write_bytes`` (no lock unless a size limit is set and
+    ``filelock`` is installed): another process may read it half written (JAX warns and
+    compiles again), and a process killed while writing leaves a truncated entry that is never
+    replaced. Entries are written to a temporary name and renamed instead (physdsl/io.py).
+    Left alone where JAX's cache class is not the one this was written for.
+    """
+    try:
+        from jax._src import lru_cache
+    except ImportError:  # pragma: no cover - another jax layout: keep its own writes
+        return
+    put = getattr(lru_cache.LRUCache, "put", None)
+    suffix = getattr(lru_cache, "_CACHE_SUFFIX", None)
+    if put is None or suffix is None or getattr(put, "physdsl_atomic", False):
+        return
+
+    def atomic_put(self, key: str, value: bytes) -> None:
+        if getattr(self, "eviction_enabled", True) or not key:
+            return put(self, key, value)  # JAX's own locked path (or its error)
+        from .io import write_bytes
+
+        entry = self.path / f"{key}{suffix}"
+        if not entry.exists():  # same key, same program: the first writer's copy is kept
+            write_bytes(entry, value)
+
+    atomic_put.physdsl_atomic = True
+    lru_cache.LRUCache.put = atomic_put
 
 
 def current() -> Optional[Path]:

@@ -119,3 +119,25 @@ def test_default_folder_is_the_user_cache_and_off_writes_nothing(tmp_path):
     assert not user_cache.exists()
     _rollout(_scene(tmp_path / "a"), None, XDG_CACHE_HOME=str(user_cache))
     assert _entries(user_cache / "physdsl" / "jax")
+
+
+def test_entries_are_written_atomically(tmp_path, monkeypatch):
+    """A writer that dies before the rename leaves no entry (and no temporary file) behind, so
+    the next process compiles and writes it instead of reading a truncated one."""
+    import physdsl.cache  # noqa: F401 - installs the atomic writes
+    from jax._src import lru_cache
+
+    cache = lru_cache.LRUCache(str(tmp_path), max_size=-1)
+    cache.put("k1", b"x" * 1000)
+    assert cache.get("k1") == b"x" * 1000
+
+    def dies(*_):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(os, "replace", dies)
+    try:
+        cache.put("k2", b"y" * 1000)
+    except KeyboardInterrupt:
+        pass
+    assert cache.get("k2") is None
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["k1-cache"]
