@@ -65,7 +65,9 @@ def test_thrown_football_linear_drag_is_implausible_and_quadratic_named(tmp_path
 
     from .conftest import fit
 
-    model = Model(_scene())
+    from physdsl.syntax import load
+
+    model = Model(load(BALL))  # loaded from its file: refits find the data beside it
     idata = fit(model)
     diag = diagnose(model, idata, confirm_top=2)
     lin = next((r for r in diag.ranking if r.effect == "linear_drag" and r.fitted), None)

@@ -41,5 +41,5 @@ def test_refine_adds_the_encoder_offset_and_no_effect(tmp_path):
     assert added == [{"effect": "offset", "target": "hinge.angle"}], summary
     assert rounds[-1].rms_sigma <= 1.2
     final = load(rounds[-1].scene)
-    assert not final.effects  # no physical effect
+    assert [e.effect for e in final.effects] == ["gravity"]  # no physical effect added
     assert "offset ~ normal" in final.source
