@@ -45,8 +45,8 @@ def _root(
                                  help="Print the version and exit."),
     cache_dir: Optional[Path] = typer.Option(
         None, "--cache-dir", metavar="DIR", file_okay=False,
-        help="Folder of compiled programs kept across runs [default: PHYSDSL_CACHE_DIR, "
-             "else the user cache folder]; 'off' disables it."),
+        help="Folder of compiled programs kept across runs (default: PHYSDSL_CACHE_DIR, "
+             "else ~/.cache/physdsl/jax); 'off' disables it."),
     no_cache: bool = typer.Option(False, "--no-cache", help="Compile afresh, keep nothing."),
 ) -> None:
     """physdsl: describe a physical scene, fit it to measurements, find what it misses."""
