@@ -19,8 +19,8 @@ import numpy as np
 from ..scene import Scene
 from . import central, idle
 from .forward import FORWARD_MODE_MAX, forward_mode
-from .markers import marker_tracks
 from .integrate import State, kinematics, step
+from .markers import marker_tracks
 from .model import Model, build_model
 from .params import evaluate_params
 from .rows import place
@@ -36,9 +36,9 @@ class Rollout(NamedTuple):
     body_angvel: jnp.ndarray  # (T, B, 3) world angular velocity
     joint_pos: jnp.ndarray  # (T, J) hinge angle / slider displacement, 0 for other kinds
     joint_vel: jnp.ndarray  # (T, J)
+    contact_force: jnp.ndarray  # (T, C) normal force per candidate contact (0 when apart)
     marker_pos: jnp.ndarray | None = None  # (T, M, 3) markers' world positions
     marker_vel: jnp.ndarray | None = None  # (T, M, 3) markers' world velocities
-    contact_force: jnp.ndarray  # (T, C) normal force per candidate contact (0 when apart)
 
 
 def observe(model: Model, prm: dict, q, v):
@@ -66,8 +66,8 @@ class Simulator:
         self.scene = scene
         self.model = model
         self.body_names = model.body_names
-        self.marker_names = tuple(m.name for m in scene.markers)
         self.joint_names = model.joint_names
+        self.marker_names = tuple(m.name for m in scene.markers)
         n = model.nsteps
         self.times = np.arange(n + 1) * model.dt
         self.integrator = model.integrator  # between contacts (``integrate.step``)
