@@ -105,18 +105,23 @@ class Loo:
 
 
 def loo(ll: np.ndarray) -> Loo:
-    """PSIS-LOO (arviz) of a pointwise log-likelihood ``ll`` (chain, draw, n). The standard
-    error is sqrt(n var(loo_i)) under both versions, so a ΔELPD reads the same."""
+    """PSIS-LOO (arviz) of a pointwise log-likelihood ``ll`` (chain, draw, n). A point whose
+    log-likelihood is the same in every draw gets its exact LOO density (that value, Pareto k
+    0: leaving it out changes no weight); arviz 1.x refuses to fit a tail to it, 0.x returns
+    NaN. The standard error is sqrt(n var(loo_i)) under both versions (1.x: ddof=1)."""
     ll = np.asarray(ll, dtype=float)
-    data = from_dict({"posterior": {"_": np.zeros(ll.shape[:2])},
-                      "log_likelihood": {"all": ll}})
-    r = az.loo(data, pointwise=True)
-    if MODERN:
-        elpd, p, pointwise = r.elpd, r.p, r.elpd_i
-    else:
-        elpd, p, pointwise = r["elpd_loo"], r["p_loo"], r["loo_i"]
-    pointwise = np.asarray(pointwise, dtype=float).ravel()
-    se = float(np.sqrt(pointwise.size * np.var(pointwise)))  # arviz 0.x's (1.x: ddof=1)
-    k = np.asarray(r.pareto_k, dtype=float).ravel()
+    flat = ll.reshape(-1, ll.shape[2])
+    constant = np.ptp(flat, axis=0) == 0
+    pointwise, k = flat[0].copy(), np.zeros(ll.shape[2])
+    if not constant.all():
+        data = from_dict({"posterior": {"_": np.zeros(ll.shape[:2])},
+                          "log_likelihood": {"all": ll[..., ~constant]}})
+        r = az.loo(data, pointwise=True)
+        pointwise[~constant] = np.asarray(r.elpd_i if MODERN else r["loo_i"], dtype=float).ravel()
+        k[~constant] = np.asarray(r.pareto_k, dtype=float).ravel()
     k = np.where(np.isnan(k), np.inf, k)  # no tail could be fitted: 0.x says inf, 1.x NaN
-    return Loo(float(elpd), se, float(p), pointwise, k)
+    m = flat.max(axis=0)
+    lppd = float(np.sum(m + np.log(np.mean(np.exp(flat - m), axis=0))))
+    elpd = float(pointwise.sum())
+    se = float(np.sqrt(pointwise.size * np.var(pointwise)))
+    return Loo(elpd, se, lppd - elpd, pointwise, k)

@@ -1,11 +1,14 @@
 """The posterior container under whichever arviz is installed (0.18-0.23 InferenceData or
 >= 1.0 DataTree): built, written, read back, summarised and scored the same way."""
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from physdsl.infer import posterior_data as pd
+
+DATA = Path(__file__).resolve().parent / "data"
 
 
 def _posterior(rng):
@@ -73,3 +76,39 @@ def test_loo_equals_the_direct_sum_when_importance_weights_are_flat():
     lppd = np.log(np.mean(np.exp(flat), axis=0)).sum()
     assert r.p_loo == pytest.approx(lppd - r.elpd_loo, abs=1e-6)
     assert np.all(r.pareto_k < 0.7)
+
+
+@pytest.mark.parametrize("written_by", ["0.23", "1.3"])
+def test_a_file_written_under_either_arviz_reads_back(written_by):
+    """posterior.nc files written by arviz 0.23.4 and 1.3.0 (``write``, same layout): every
+    group, value, coordinate and attribute reads back under the installed version."""
+    from physdsl.infer.intervals import shown_posterior
+
+    back = pd.read(DATA / f"posterior_arviz{written_by}.nc")
+    assert set(pd.group_names(back)) == {"posterior", "log_likelihood", "observed_data",
+                                         "posterior_robust"}
+    np.testing.assert_array_equal(pd.group(back, "posterior")["v"].values,
+                                  np.arange(60.0).reshape(2, 10, 3))
+    np.testing.assert_array_equal(pd.group(back, "log_likelihood")["obs:y"].values,
+                                  -np.arange(140.0).reshape(2, 10, 7) / 100)
+    observed = pd.group(back, "observed_data")["obs:y"]
+    assert list(observed["obs:y:axis"].values) == ["x", "y"]
+    post, shown = shown_posterior(back)
+    assert shown == "robust" and float(post.attrs["max_widening"]) == 2.0
+    np.testing.assert_array_equal(post["a"].values, 2 * np.arange(20.0).reshape(2, 10))
+
+
+def test_loo_of_a_point_no_draw_moves_is_its_value():
+    """A measurement with the same log-likelihood in every draw: its LOO density is that
+    value (Pareto k 0) under both arviz versions (1.x refuses the tail fit, 0.x gave NaN)."""
+    rng = np.random.default_rng(3)
+    ll = rng.normal(-1.0, 0.05, (2, 300, 5))
+    ll[..., 2] = -0.25
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = pd.loo(ll)
+        rest = pd.loo(ll[..., [0, 1, 3, 4]])
+    assert r.loo_i[2] == -0.25 and r.pareto_k[2] == 0.0
+    np.testing.assert_allclose(r.loo_i[[0, 1, 3, 4]], rest.loo_i, rtol=1e-12)
+    assert r.elpd_loo == pytest.approx(rest.elpd_loo - 0.25, rel=1e-12)
+    assert r.p_loo == pytest.approx(rest.p_loo, rel=1e-9)
