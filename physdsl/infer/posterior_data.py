@@ -1,4 +1,4 @@
-"""The posterior container across arviz's two APIs: ``InferenceData`` (arviz 0.18-0.23) and
+"""The posterior container across arviz's two APIs: ``InferenceData`` (arviz 0.19-0.23) and
 xarray ``DataTree`` (arviz >= 1.0: arviz_base, arviz_stats).
 
 Every part of physdsl builds, reads, writes, summarises and scores posteriors through these
@@ -22,7 +22,7 @@ MODERN = int(VERSION.split(".")[0]) >= 1  # arviz >= 1.0: DataTree, from_dict({g
 
 
 def from_dict(groups: dict[str, dict | None], dims=None, coords=None):
-    """A posterior object from ``{group: {name: array}}`` (posterior-like groups: arrays
+    """An arviz posterior (InferenceData or DataTree) from ``{group: {name: array}}`` (posterior-like groups: arrays
     (chain, draw, ...); ``observed_data``: no sample dimensions). Empty groups are left out."""
     groups = {g: v for g, v in groups.items() if v}
     if MODERN:

@@ -1,4 +1,4 @@
-"""The posterior container under whichever arviz is installed (0.18-0.23 InferenceData or
+"""The posterior container under whichever arviz is installed (0.19-0.23 InferenceData or
 >= 1.0 DataTree): built, written, read back, summarised and scored the same way."""
 import warnings
 from pathlib import Path
