@@ -70,6 +70,8 @@ def test_thrown_football_linear_drag_is_implausible_and_quadratic_named(tmp_path
     model = Model(load(BALL))  # loaded from its file: refits find the data beside it
     idata = fit(model)
     diag = diagnose(model, idata, confirm_top=2)
+    print(diag.table())
+    print(diag.verdict)
     lin = next((r for r in diag.ranking if r.effect == "linear_drag" and r.fitted), None)
     assert lin is not None, diag.table()
     j = ps.judge_drag(model.scene, "linear_drag", "ball", lin.fitted["median"],
