@@ -17,12 +17,11 @@ from dataclasses import dataclass
 import jax
 import jax.numpy as jnp
 import numpy as np
-import numpyro
-from numpyro.infer.util import constrain_fn, potential_energy, unconstrain_fn
+from numpyro.infer.util import constrain_fn, potential_energy
 
 from ..expr import evaluate, references
 from ..observe import trajectory
-from .problem import unraveler
+from .problem import unconstrained_layout, unraveler
 
 WINDOW_S = 0.2  # at most the first 0.2 s of a track ...
 WINDOW_SAMPLES = 20  # ... and at most 20 samples
@@ -162,7 +161,7 @@ def _objective(problem, names: tuple[str, ...], estimates: list[Estimate]):
     model = problem.model
     sim = model.simulator
 
-    layout = prior_layout(model)
+    layout = unconstrained_layout(model)
     unravel, _ = unraveler(layout)
     leaves = jax.tree_util.tree_leaves_with_path(layout)
     mask = np.concatenate([np.full(int(np.prod(leaf.shape)), _key(path) in names)
@@ -192,18 +191,8 @@ def _objective(problem, names: tuple[str, ...], estimates: list[Estimate]):
     return (lambda x: jitted(x, numbers)), mask
 
 
-def prior_layout(model):
-    """The pytree of ShapeDtypeStructs of the prior's unconstrained values (runs nothing)."""
-    def unconstrained_draw(key):
-        with numpyro.handlers.seed(rng_seed=key):
-            draw = model.prior_values()
-        return unconstrain_fn(model.prior_values, (), {}, draw)
-
-    return jax.eval_shape(unconstrained_draw, jax.ShapeDtypeStruct((2,), jnp.uint32))
-
-
 def _key(path) -> str:
     return str(getattr(path[0], "key", path[0]))
 
 
-__all__ = ["Estimate", "data_start", "initial_state_unknowns", "prior_layout", "track_estimates"]
+__all__ = ["Estimate", "data_start", "initial_state_unknowns", "track_estimates"]

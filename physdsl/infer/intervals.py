@@ -28,13 +28,13 @@ import json
 import jax
 import jax.numpy as jnp
 import numpy as np
-import numpyro
-from numpyro.infer.util import constrain_fn, unconstrain_fn
+from numpyro.infer.util import constrain_fn
 
 from ..compile import PRED_PREFIX
 from ..expr import references
 from . import posterior_data
 from .base import cached
+from .problem import unconstrained_layout, unraveler
 
 SHOWN = ("robust", "model")  # what summary.csv shows: ``--intervals``
 GROUP = "posterior_robust"
@@ -236,22 +236,13 @@ def _residual_draws(model, problem, constrained) -> dict[str, np.ndarray]:
     return {k: np.asarray(v) for k, v in fn(sites, problem.data).items()}
 
 
-def _layout(model):
-    def draw(key):
-        with numpyro.handlers.seed(rng_seed=key):
-            values = model.prior_values()
-        return unconstrain_fn(model.prior_values, (), {}, values)
-
-    return jax.eval_shape(draw, jax.ShapeDtypeStruct((2,), jnp.uint32))
-
-
 def _physical_dims(model, dim: int) -> np.ndarray:
     """Flat indices of every unknown but the noise scales (ravel order: sorted names)."""
     noise = set()
     for o in model.observed:
         noise |= references(o.obs.noise.scale)
     keep, at = [], 0
-    for name, leaf in sorted(_layout(model).items()):
+    for name, leaf in sorted(unconstrained_layout(model).items()):
         size = int(np.prod(leaf.shape))
         if name not in noise:
             keep.extend(range(at, at + size))
@@ -261,10 +252,8 @@ def _physical_dims(model, dim: int) -> np.ndarray:
 
 
 def _constrain(model, problem):
-    from .problem import unraveler
-
     def build():
-        unravel, _ = unraveler(_layout(model))
+        unravel, _ = unraveler(unconstrained_layout(model))
         return jax.jit(jax.vmap(lambda x: constrain_fn(model.prior_values, (), {}, unravel(x))))
 
     return cached(problem, "intervals-constrain", build)

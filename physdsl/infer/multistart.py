@@ -24,8 +24,8 @@ from numpyro.infer.util import constrain_fn, potential_energy
 
 from .backends.map import find_mode, major_modes
 from .base import cached, gauss_newton_fn, value_and_grad_fn
-from .data_starts import data_start, prior_layout
-from .problem import prior_draws_unconstrained, unraveler
+from .data_starts import data_start
+from .problem import prior_draws_unconstrained, unconstrained_layout, unraveler
 
 SAME_BASIN_SD = 3.0  # modes closer than this many Laplace sd (Mahalanobis) share a basin
 CENTRE_DRAWS = 256  # prior draws whose coordinate-wise median is the prior's centre
@@ -156,7 +156,7 @@ def _likelihood_constants(problem):
     model = problem.model
 
     def build():
-        unravel, _ = unraveler(prior_layout(model))
+        unravel, _ = unraveler(unconstrained_layout(model))
 
         def fn(x, data):
             u = unravel(x)
@@ -180,7 +180,7 @@ def _scalar_values(problem, x) -> dict:
     model = problem.model
 
     def build():
-        unravel, _ = unraveler(prior_layout(model))
+        unravel, _ = unraveler(unconstrained_layout(model))
         return jax.jit(lambda x: constrain_fn(model.prior_values, (), {}, unravel(x)))
 
     values = cached(problem, "constrain-prior", build)(jnp.asarray(x))
