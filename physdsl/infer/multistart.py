@@ -13,7 +13,6 @@ from the data puts the throw where the first samples say, so it does.
 """
 from __future__ import annotations
 
-import json
 import warnings
 from dataclasses import dataclass, field
 
@@ -202,14 +201,5 @@ def describe(basins: list[dict]) -> list[str]:
     return lines
 
 
-def record_basins(run_json, basins: list[dict]) -> None:
-    """Add ``basins`` to a run's run.json (written atomically)."""
-    from .. import io
-
-    run = json.loads(run_json.read_text()) if run_json.exists() else {}
-    run["basins"] = basins
-    io.write_json(run_json, run)
-
-
-__all__ = ["Search", "describe", "prior_centre", "record_basins", "residual_rms", "search",
+__all__ = ["Search", "describe", "prior_centre", "residual_rms", "search",
            "start_points"]

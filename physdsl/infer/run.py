@@ -139,11 +139,8 @@ def _run(model, backend, settings, outdir, resume, force, progress, positions):
         from .output import save_run
 
         quality = _fit_quality(model, idata, stages)
-        save_run(out, model, idata, backend, settings, extra={"fit_quality": quality})
-        if basins:
-            from .multistart import record_basins
-
-            record_basins(out / "run.json", basins)
+        extra = {"fit_quality": quality, **({"basins": basins} if basins else {})}
+        save_run(out, model, idata, backend, settings, extra=extra)
         if ckpt_path.exists():
             ckpt_path.unlink()
     return idata

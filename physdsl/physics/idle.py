@@ -26,11 +26,13 @@ PRIMITIVES = ("sphere", "box", "capsule", "cylinder", "plane")
 
 
 def free_scene(scene, model: Model):
-    """``scene`` without its contact pairs where that flies on the split path, else None."""
+    """``scene`` without its contact pairs and its Model, where that flies on the split path;
+    else None."""
     if not model.ncon or any(k not in PRIMITIVES for p in model.pairs for k in (p.kind_a, p.kind_b)):
         return None
     free = dataclasses.replace(scene, contact_pairs=())
-    return free if central.decoupled(build_model(free)) else None
+    free_model = build_model(free)
+    return (free, free_model) if central.decoupled(free_model) else None
 
 
 def _radius(kind: str, size):

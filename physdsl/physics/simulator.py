@@ -72,7 +72,7 @@ class Simulator:
         self.times = np.arange(n + 1) * model.dt
         self.integrator = model.integrator  # between contacts (``integrate.step``)
         free = idle.free_scene(scene, model)  # contacts that may never come near (``idle``)
-        self._free = None if free is None else Simulator(free, build_model(free))
+        self._free = None if free is None else Simulator(*free)
         self.trace_count = 0
         self._jit = jax.jit(self._simulate, static_argnums=1)
 
