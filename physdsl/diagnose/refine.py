@@ -191,14 +191,19 @@ def _write_summary(out: Path, rounds: list[Round]) -> None:
     lines = ["| round | scene | action | added | replaced | RMS (σ) | ELPD | log Z |",
              "|---|---|---|---|---|---|---|---|"]
     for r in rounds:
-        add = f"{r.added['effect']} on {r.added['target']}" if r.added else "—"
-        rep = f"{r.replaced['effect']} on {r.replaced['target']}" if r.replaced else "—"
-        z = "n/a" if r.log_evidence is None else f"{r.log_evidence:.1f}"
-        lines.append(f"| {r.index} | {r.scene} | {r.action or '—'} | {add} | {rep} | "
-                     f"{r.rms_sigma:.2f} | {r.elpd:.1f} | {z} |")
+        action, add, rep, rms, elpd, z = _cells(r)
+        lines.append(f"| {r.index} | {r.scene} | {action} | {add} | {rep} | {rms} | {elpd} | {z} |")
     io.write_text(out / "refine.md", "\n".join(lines) + "\n")
     _plot(out, rounds)
     io.write_text(out / "index.html", _html(out, rounds))
+
+
+def _cells(r: Round) -> tuple[str, ...]:
+    """A round's action, added, replaced, RMS, ELPD and log Z as table text (refine.md, index.html)."""
+    add = f"{r.added['effect']} on {r.added['target']}" if r.added else "—"
+    rep = f"{r.replaced['effect']} on {r.replaced['target']}" if r.replaced else "—"
+    z = "n/a" if r.log_evidence is None else f"{r.log_evidence:.1f}"
+    return r.action or "—", add, rep, f"{r.rms_sigma:.2f}", f"{r.elpd:.1f}", z
 
 
 def _html(out: Path, rounds: list[Round]) -> str:
@@ -211,12 +216,8 @@ def _html(out: Path, rounds: list[Round]) -> str:
     for r in rounds:
         scene = Path(os.path.relpath(Path(r.scene).resolve(), out.resolve())).as_posix()
         check = Path(scene).parent / "check" / "index.html"
-        add = f"{r.added['effect']} on {r.added['target']}" if r.added else "—"
-        rep = f"{r.replaced['effect']} on {r.replaced['target']}" if r.replaced else "—"
-        z = "n/a" if r.log_evidence is None else f"{r.log_evidence:.1f}"
-        rows.append(f"<tr><td>{r.index}</td><td><a href='{e(scene)}'>{e(scene)}</a></td>"
-                    f"<td>{e(r.action or '—')}</td><td>{e(add)}</td><td>{e(rep)}</td>"
-                    f"<td>{r.rms_sigma:.2f}</td><td>{r.elpd:.1f}</td><td>{z}</td>"
+        cells = "".join(f"<td>{e(c)}</td>" for c in _cells(r))
+        rows.append(f"<tr><td>{r.index}</td><td><a href='{e(scene)}'>{e(scene)}</a></td>{cells}"
                     f"<td><a href='{e(check.as_posix())}'>check</a></td></tr>")
     return html_page("physdsl refine", [
         "<h1>Refine</h1>", f"<p>{e(rounds[-1].verdict)}</p>" if rounds else "",
