@@ -27,7 +27,7 @@ from .errors import (  # noqa: E402
 )
 from .scene import Scene  # noqa: E402
 
-__version__ = "0.1.0"
+from .version import __version__  # noqa: E402
 
 __all__ = [
     "DataError", "InferenceError", "ModelError", "PhysError", "PhysErrors", "PhysImportError",

@@ -867,7 +867,7 @@ def _z_prefix(scene: Scene, source: str) -> str:
 
 def _header(scene_path: Path, run: Mapping, fit: ProtoFit, quality, n_draws: int,
             free, drop, widen, observe, z_names) -> list[str]:
-    from . import __version__
+    from .version import __version__
 
     lines = [f"proto-program exported by physdsl {__version__} from {run.get('scene') or scene_path}"]
     if run.get("scene_sha256"):

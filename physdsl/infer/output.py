@@ -292,7 +292,7 @@ def save_run(out: Path, model, idata, backend: str, settings, extra: dict | None
     import jax as _jax
     import numpyro
     import blackjax
-    from .. import __version__
+    from ..version import __version__
 
     run = {
         "scene": str(scene.path) if scene.path else None,
