@@ -17,7 +17,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "physdsl"
 # Highest floor first. A module may import its own floor or lower floors, never a higher one.
 FLOORS = (
     ("cli",),
-    ("api",),
+    ("api", "batch"),
     ("diagnose", "design", "export", "sample"),
     ("infer", "track"),
     ("compile", "mjcf"),
