@@ -59,33 +59,46 @@ def add_param(text: str, name: str, value_text: str, filename: str = "<string>")
 
 
 def _set_field(block: ast.Block | None, key_path: list[str], value_text: str) -> ast.Block:
-    """``block`` with field ``key_path`` (e.g. ['shape', 'radius']) set, added if missing."""
+    """``block`` with field ``key_path`` (e.g. ['shape', 'radius']) set to value text, added if missing."""
+    return set_field(block, key_path, _field("x", value_text).value)
+
+
+def set_field(block: ast.Block | None, key_path: list[str], value, create: bool = True):
+    """``block`` (possibly None) with field ``key_path`` (e.g. ['shape', 'radius']) set to the
+    AST value ``value`` (an expression or a Dist); a missing field is added, or, when not
+    ``create``, the result is None."""
     block = block or ast.Block(())
     key = key_path[0]
     fields = list(block.fields)
     if key == "material" and len(key_path) > 1:
         for i, f in enumerate(fields):
             if isinstance(f, ast.MaterialBlock):
-                fields[i] = dataclasses.replace(f, block=_set_field(f.block, key_path[1:], value_text))
+                inner = set_field(f.block, key_path[1:], value, create)
+                if inner is None:
+                    return None
+                fields[i] = dataclasses.replace(f, block=inner)
                 return dataclasses.replace(block, fields=tuple(fields))
-        fields.append(ast.MaterialBlock(_set_field(None, key_path[1:], value_text)))
+        if not create:
+            return None
+        fields.append(ast.MaterialBlock(set_field(None, key_path[1:], value)))
         return dataclasses.replace(block, fields=tuple(fields))
     for i, f in enumerate(fields):
         if isinstance(f, ast.Field) and f.key == key:
             if len(key_path) == 1:
-                fields[i] = dataclasses.replace(_field(key, value_text), span=f.span)
+                fields[i] = dataclasses.replace(f, value=value)
             else:
-                fields[i] = dataclasses.replace(f, value=_set_arg(f.value, key_path[1], value_text))
+                fields[i] = dataclasses.replace(f, value=_set_arg(f.value, key_path[1], value))
             return dataclasses.replace(block, fields=tuple(fields))
+    if not create:
+        return None
     if len(key_path) > 1:
         raise PhysNameError(f"no field '{key}' to change")
-    fields.append(_field(key, value_text))
+    fields.append(ast.Field(key, value))
     return dataclasses.replace(block, fields=tuple(fields))
 
 
-def _set_arg(node, name: str, value_text: str):
-    """A call or record with argument ``name`` replaced (``rod.shape.radius``, ``j1.dh.a``)."""
-    value = _field("x", value_text).value
+def _set_arg(node, name: str, value):
+    """A call or record with argument ``name`` set to the AST value ``value`` (``rod.shape.radius``, ``j1.dh.a``)."""
     if isinstance(value, ast.Dist):
         raise PhysNameError(f"'{name}' is an argument; it cannot be '~ dist(...)'",
                             hint="declare 'param NAME ~ dist(...)' and use NAME")
