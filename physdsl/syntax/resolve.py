@@ -22,6 +22,7 @@ from ..scene import (DH, Body, Camera, EffectDecl, EffectParam, EffectUse, Joint
 from . import ast, collide, dists
 from .data import read_control, read_image_times, read_observation
 from .bounds import Bounds
+from .contact_sugar import CONTACT_SUGAR, SUGAR_PARAM
 from .library import load_library
 from .loops import annotate, expand, place
 from .mapping import check_label, clash_hint, unknown_target
@@ -95,8 +96,6 @@ BODY_QUANTITIES = {"position": (("x", "y", "z"), LENGTH), "orientation": (("qw",
                    "velocity": (("vx", "vy", "vz"), VEL),
                    "angular_velocity": (("wx", "wy", "wz"), ANGVEL)}
 JOINT_QUANTITIES = {"angle": ("angle",), "angular_rate": ("rate",)}
-CONTACT_SUGAR = {"friction": "contact_friction", "restitution": "restitution",
-                 "rolling_resistance": "rolling_resistance"}
 OBSERVE_FIELDS = {"noise", "model", "df", "offset", "gain", "delay"}
 FUNCS = {"sqrt", "sin", "cos", "tan", "exp", "log", "abs", "atan2", "norm", "euler", "quat",
          "axis_angle"}
@@ -1185,9 +1184,9 @@ class Resolver:
         self.target_kind((item.a, item.b), item.span)
         out = []
         for k, f in fs.items():
-            fld = ast.Field("coefficient", f.value, f.span)
+            fld = ast.Field(SUGAR_PARAM, f.value, f.span)
             use = self.collect(self.effect_use, CONTACT_SUGAR[k], (item.a, item.b),
-                               {"coefficient": fld}, item.span)
+                               {SUGAR_PARAM: fld}, item.span)
             if use is not None:
                 out.append(use)
         return out
