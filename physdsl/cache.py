@@ -16,6 +16,15 @@ from pathlib import Path
 from typing import Optional
 
 import jax
+import platformdirs
+from jax.experimental.compilation_cache import compilation_cache as cc
+
+from .io import write_bytes
+
+try:  # JAX's cache class, patched below to write entries atomically
+    from jax._src import lru_cache
+except ImportError:  # pragma: no cover - another jax layout: keep its own writes
+    lru_cache = None
 
 ENV = "PHYSDSL_CACHE_DIR"
 OFF = ("off", "none", "0", "false", "no", "")
@@ -27,8 +36,6 @@ MIN_COMPILE_S = 0.0
 
 def default_dir() -> Path:
     """The per-user cache folder: ``<user cache dir>/physdsl/jax``."""
-    import platformdirs
-
     return Path(platformdirs.user_cache_dir("physdsl", appauthor=False)) / "jax"
 
 
@@ -49,8 +56,6 @@ def configure(cache_dir: Optional[str | os.PathLike] = None) -> Optional[Path]:
     May be called again (the CLI's ``--cache-dir`` after the import-time default): JAX opens its
     cache lazily at the first compile, and is re-pointed here if it was already open.
     """
-    from jax.experimental.compilation_cache import compilation_cache as cc
-
     path = resolve(cache_dir)
     if path == current():
         return path
@@ -75,9 +80,7 @@ def _write_entries_atomically() -> None:
     replaced. Entries are written to a temporary name and renamed instead (physdsl/io.py).
     Left alone where JAX's cache class is not the one this was written for.
     """
-    try:
-        from jax._src import lru_cache
-    except ImportError:  # pragma: no cover - another jax layout: keep its own writes
+    if lru_cache is None:  # pragma: no cover
         return
     put = getattr(lru_cache.LRUCache, "put", None)
     suffix = getattr(lru_cache, "_CACHE_SUFFIX", None)
@@ -87,8 +90,6 @@ def _write_entries_atomically() -> None:
     def atomic_put(self, key: str, value: bytes) -> None:
         if getattr(self, "eviction_enabled", True) or not key:
             return put(self, key, value)  # JAX's own locked path (or its error)
-        from .io import write_bytes
-
         entry = self.path / f"{key}{suffix}"
         if not entry.exists():  # same key, same program: the first writer's copy is kept
             write_bytes(entry, value)

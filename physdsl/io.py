@@ -8,6 +8,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Iterator
 
+import numpy as np
+
 from .errors import UsageError
 
 
@@ -47,8 +49,6 @@ def write_json(path: str | Path, obj: Any) -> Path:
 
 
 def _json_default(obj: Any):
-    import numpy as np
-
     if isinstance(obj, np.ndarray):
         return obj.tolist()
     if isinstance(obj, (np.floating, np.integer, np.bool_)):
