@@ -18,7 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import UsageError
-from ..physics.forward import FORWARD_MODE_MAX, enclosing, inline_calls, jacobian, prune
+from ..physics.forward import FORWARD_MODE_MAX, inline_calls, jacobian, prune
 
 BACKENDS: dict[str, "Backend"] = {}
 
@@ -221,9 +221,9 @@ def _forward(fn, x, data):
     """(outputs of ``fn(x, data)`` (a tuple), their derivatives in ``x``, (dim, *shape) each) by
     forward mode read off ``fn``'s jaxpr, as ``_value_and_grad`` explains."""
     leaves, tree = jax.tree_util.tree_flatten((x, data))
-    with enclosing():  # the rollout inline: its loops take these tangents
-        closed = jax.make_jaxpr(lambda *xs: fn(*jax.tree_util.tree_unflatten(tree, xs)))(*leaves)
-    values, tangents = jacobian(prune(inline_calls(closed))[0], leaves, [0])
+    closed = jax.make_jaxpr(lambda *xs: fn(*jax.tree_util.tree_unflatten(tree, xs)))(*leaves)
+    # the rollout inline (``rollouts=True``): its loops take these tangents
+    values, tangents = jacobian(prune(inline_calls(closed, rollouts=True))[0], leaves, [0])
     return values, [jnp.zeros((x.size,) + jnp.shape(v), v.dtype) if t is None else t
                     for v, t in zip(values, tangents)]
 

@@ -9,12 +9,11 @@ by one vmapped jvp, each loop as a new scan whose body is the vmapped jvp of the
 every tangent an explicit carry (JAX's own jvp and vmap of a scan trace its body four or five
 times over, to find which carries have tangents and which are batched). Small jit calls (e.g.
 ``jnp.where``'s) are inlined first. A caller that differentiates a larger function the same way
-(the log density, ``infer.base``) traces it within ``enclosing()``: the rollout is then inline
-and its loops take the caller's tangents.
+(the log density, ``infer.base``) says so explicitly: ``inline_calls(closed, rollouts=True)``
+replaces each forward-mode call in its jaxpr by the rollout's own equations, whose loops then
+take the caller's tangents (no mode flag: the call is marked in the jaxpr itself).
 """
 from __future__ import annotations
-
-import contextlib
 
 import jax
 import jax.extend
@@ -25,19 +24,9 @@ core = jax.extend.core
 
 # at most this many scalar unknowns: derivatives by forward mode; more: reverse mode
 FORWARD_MODE_MAX = 24
-_ENCLOSING = [0]  # > 0 while a caller traces a function whose Jacobian it reads off (``enclosing``)
-
-
-@contextlib.contextmanager
-def enclosing():
-    """Within this block ``forward_mode(f)`` is ``f`` itself: for a caller that traces a larger
-    function and reads its forward-mode Jacobian off the whole jaxpr (``jacobian``), so the
-    rollout's loops take the caller's tangents directly (traced once, no Jacobian to multiply)."""
-    _ENCLOSING[0] += 1
-    try:
-        yield
-    finally:
-        _ENCLOSING[0] -= 1
+# the name of the function under ``forward_mode``'s custom jvp: it marks the call in a jaxpr
+# (``inline_calls(..., rollouts=True)``)
+_MARK = "forward_mode_run"
 
 
 def forward_mode(f):
@@ -45,8 +34,6 @@ def forward_mode(f):
     Jacobian with respect to the float leaves of ``values`` that ``f`` reads (others get no
     tangent column)."""
     def apply(values):
-        if _ENCLOSING[0]:
-            return f(values)
         leaves, in_tree = jax.tree_util.tree_flatten(values)
         closed, shape = jax.make_jaxpr(lambda *xs: f(jax.tree_util.tree_unflatten(in_tree, xs)),
                                        return_shape=True)(*leaves)
@@ -55,9 +42,10 @@ def forward_mode(f):
         out_tree = jax.tree_util.tree_structure(shape)
         cols = [i for i, x in enumerate(leaves) if used[i] and _is_float(x)]
 
-        def run(*xs):
+        def forward_mode_run(*xs):
             return jax.tree_util.tree_unflatten(out_tree, run_flat(*xs))
 
+        run = forward_mode_run
         g = jax.custom_jvp(run)
 
         @g.defjvp
@@ -93,30 +81,42 @@ def prune(closed):
     return pruned, [v in live for v in jaxpr.invars]
 
 
-def inline_calls(closed):
+def inline_calls(closed, rollouts: bool = False):
     """``closed`` with its jit calls (e.g. ``jnp.where``'s) replaced by their equations: a call
     would be transformed (jvp, vmap) as a jaxpr of its own and lowered as a function of its own,
-    for a handful of elementwise operations."""
+    for a handful of elementwise operations. ``rollouts``: the calls of ``forward_mode`` too
+    (replaced by the function's own equations), for a caller that reads the Jacobian of the
+    whole jaxpr off it (``jacobian``): the rollout's loops then take the caller's tangents
+    directly, with no Jacobian of their own to multiply."""
     jaxpr = closed.jaxpr
-    if not any(_is_call(e) for e in jaxpr.eqns):
+    if not any(_is_call(e, rollouts) for e in jaxpr.eqns):
         return closed
     sub: dict = {}
     eqns: list = []
-    _inline(jaxpr.eqns, sub, eqns, fresh=False)
+    consts: list = []
+    _inline(jaxpr.eqns, sub, eqns, fresh=False, rollouts=rollouts, consts=consts)
     outvars = [sub.get(v, v) if isinstance(v, core.Var) else v for v in jaxpr.outvars]
-    return core.ClosedJaxpr(jaxpr.replace(eqns=eqns, outvars=outvars), closed.consts)
+    constvars = list(jaxpr.constvars) + [v for v, _ in consts]
+    return core.ClosedJaxpr(jaxpr.replace(constvars=constvars, eqns=eqns, outvars=outvars),
+                            list(closed.consts) + [c for _, c in consts])
 
 
-def _inline(eqns, sub: dict, out: list, fresh: bool) -> None:
+def _inline(eqns, sub: dict, out: list, fresh: bool, rollouts: bool = False,
+            consts: list | None = None) -> None:
     """Append ``eqns`` to ``out`` with calls replaced by their equations; ``sub`` maps variables
-    of this level to atoms of the result; ``fresh``: new variables (a call's body may be shared)."""
+    of this level to atoms of the result; ``fresh``: new variables (a call's body may be shared);
+    a forward-mode call's constants become new constants of the result (``consts``)."""
     read = lambda v: sub.get(v, v) if isinstance(v, core.Var) else v  # noqa: E731
     for eqn in eqns:
         invars = [read(v) for v in eqn.invars]
-        if _is_call(eqn):
-            inner = eqn.params["jaxpr"].jaxpr
+        if _is_call(eqn, rollouts):
+            called = eqn.params["jaxpr" if eqn.primitive.name != "custom_jvp_call" else "call_jaxpr"]
+            inner = called.jaxpr
             local = dict(zip(inner.invars, invars))
-            _inline(inner.eqns, local, out, fresh=True)
+            for cv, c in zip(inner.constvars, called.consts):
+                local[cv] = core.Var(cv.aval)
+                consts.append((local[cv], c))
+            _inline(inner.eqns, local, out, fresh=True, rollouts=rollouts, consts=consts)
             for o, i in zip(eqn.outvars, inner.outvars):
                 if not isinstance(o, core.DropVar):
                     sub[o] = local.get(i, i) if isinstance(i, core.Var) else i
@@ -128,8 +128,12 @@ def _inline(eqns, sub: dict, out: list, fresh: bool) -> None:
         out.append(eqn.replace(invars=invars, outvars=outs))
 
 
-def _is_call(eqn) -> bool:
-    """A jit call with no constants of its own (those are inlined)."""
+def _is_call(eqn, rollouts: bool = False) -> bool:
+    """A jit call with no constants of its own (those are inlined), or with ``rollouts`` a call
+    of ``forward_mode``'s custom jvp (marked by its function's name)."""
+    if eqn.primitive.name == "custom_jvp_call":
+        info = eqn.params["call_jaxpr"].jaxpr.debug_info
+        return rollouts and info is not None and info.func_name == _MARK
     return eqn.primitive.name in ("pjit", "jit") and not eqn.params["jaxpr"].consts
 
 

@@ -87,3 +87,27 @@ def test_jacobian_scan_carries_only_the_columns_that_reach_it():
     scans = [e for e in jax.make_jaxpr(lambda x: jacobian(prune(closed)[0], [x], [0]))(x).eqns
              if e.primitive.name == "scan"]
     assert [e.outvars[1].aval.shape[0] for e in scans] == [2]  # (P, ...) tangent carry
+
+
+def test_inline_calls_with_rollouts_puts_the_forward_mode_loop_in_the_callers_jaxpr():
+    """A caller that reads the Jacobian of a larger function (the log density) asks for the
+    rollout's own equations (``rollouts=True``, no mode flag): the scan then sits in its jaxpr,
+    the rollout's constants come along, and the Jacobian read off it equals JAX's."""
+    from physdsl.physics.forward import inline_calls, jacobian, prune
+
+    weights = np.linspace(0.5, 2.0, 2)  # a constant of the rollout's own jaxpr
+
+    def f(x):
+        out = forward_mode(lambda v: rollout(v))({"a": x[0], "b": x[1:3], "c": x[3],
+                                                  "d": VALS["d"]})
+        return jnp.sum(out["ys"]) + jnp.sum(weights * out["u"]) + x[0] ** 2
+
+    x = jnp.array([0.9, 0.3, -0.2, 1.5])
+    closed = jax.make_jaxpr(f)(x)
+    names = lambda c: {e.primitive.name for e in c.jaxpr.eqns}  # noqa: E731
+    assert "custom_jvp_call" in names(inline_calls(closed)) and "scan" not in names(closed)
+    flat = inline_calls(closed, rollouts=True)
+    assert "custom_jvp_call" not in names(flat) and "scan" in names(flat)
+    (v,), (g,) = jacobian(prune(flat)[0], [x], [0])
+    np.testing.assert_allclose(v, f(x), rtol=1e-14)
+    np.testing.assert_allclose(g, jax.jacfwd(lambda x: f(x))(x), rtol=1e-12)
