@@ -9,6 +9,7 @@ from .. import expr as E
 from ..errors import PhysNameError
 from ..scene import Marker
 from . import ast
+from .words import close
 
 MARKER_QUANTITIES = ("position", "velocity")
 
@@ -20,13 +21,8 @@ def build_marker(r, item: ast.MarkerItem) -> Marker:
         kind = r.items_by_name.get(body)
         msg = (f"marker '{n}' is on '{body}', a {kind}, not a body" if kind else
                f"marker '{n}': unknown body '{body}'"
-               + _did_you_mean(body, r.body_index))
+               + close(body, r.body_index))
         raise r.err(PhysNameError, msg, item.span, "a marker sits on a body: "
                     f"marker {n} on BODY {{ position: (0, 0, 0) m }}")
     position = r.opt(f"{n}.position") or E.Const((0.0, 0.0, 0.0))
     return Marker(n, body, position, r.opt(f"{n}.color"), r.opt(f"{n}.radius"), item.span)
-
-
-def _did_you_mean(name: str, options) -> str:
-    from .resolve import close
-    return close(name, options)

@@ -6,163 +6,43 @@ collected and raised together as PhysErrors.
 """
 from __future__ import annotations
 
-import difflib
-import re
-from dataclasses import dataclass
 from pathlib import Path
-from typing import NamedTuple
 
 import numpy as np
 
 from .. import expr as E
 from ..errors import (DataError, PhysError, PhysErrors, PhysNameError, PhysStructureError,
                       PhysTypeError, PhysUnitError, Span)
+from ..media import MEDIA
 from ..scene import (DH, Body, Camera, EffectDecl, EffectParam, EffectUse, Joint, Light, Material,
-                     Noise, Prior, Scene, Shape, Unknown, World)
+                     Noise, Observation, Prior, Scene, Shape, Unknown, World)
 from . import ast, collide, dists
-from .data import read_control, read_image_times, read_observation
 from .bounds import Bounds
+from .checks import check
 from .contact_sugar import CONTACT_SUGAR, SUGAR_PARAM
+from .data import read_control, read_image_times, read_observation
+from .expressions import PI, R, Scope, broadcast, to_expr
 from .library import load_library
 from .loops import annotate, expand, place
 from .mapping import check_label, clash_hint, unknown_target
 from .markers import MARKER_QUANTITIES, build_marker
+from .schema import (BODY_FIELDS, BODY_FLAGS, CAMERA_FIELDS, CONTACT_MODELS, DH_FIELDS,
+                     GROUND_FIELDS, INTEGRATORS, JOINT_KINDS, LIGHT_FIELDS, MARKER_FIELDS,
+                     MATERIAL_FIELDS, OBSERVE_FIELDS, SHAPE_ARGS, WORLD_FIELDS, Spec, spec)
 from .sensor import SENSOR_FIELDS, resolve_sensor
-from ..media import MEDIA
-from .units import (ANGLE, DIMLESS, LENGTH, MASS, TIME, Dim, UnitError, known_units, lookup,
+from .units import (ANGLE, ANGVEL, DIMLESS, FORCE, FREQ, LENGTH, TIME, TORQUE, VEL, Dim,
                     parse_unit)
+from .words import close, fmt, shape_words
 
-VEL = Dim.of(m=1, s=-1)
-ACC = Dim.of(m=1, s=-2)
-ANGVEL = Dim.of(rad=1, s=-1)
-FREQ = Dim.of(s=-1)
-FORCE = Dim.of(kg=1, m=1, s=-2)
-TORQUE = Dim.of(kg=1, m=2, s=-2)
-DENSITY = Dim.of(kg=1, m=-3)
-INERTIA = Dim.of(kg=1, m=2)
-
-
-class R(NamedTuple):
-    """A resolved value: SI expression, dimension (None: a bare number, takes any) and shape."""
-
-    expr: E.Expr
-    dim: Dim | None
-    shape: tuple[int, ...]
-
-
-@dataclass(frozen=True)
-class Spec:
-    """What a field accepts: dimension(s), shape (None: scalar or any vector), words for messages."""
-
-    dims: tuple[Dim, ...]
-    shape: tuple[int, ...] | None = ()
-    constant: bool = False  # must not depend on unknowns
-
-
-def spec(dim: Dim, shape=(), constant=False) -> Spec:
-    return Spec((dim,), shape, constant)
-
-
-BODY_FIELDS = {
-    "mass": spec(MASS), "density": spec(DENSITY), "inertia": spec(INERTIA, (3,)),
-    "position": spec(LENGTH, (3,)), "orientation": spec(DIMLESS, (4,)),
-    "velocity": spec(VEL, (3,)), "angular_velocity": spec(ANGVEL, (3,)),
-    "color": spec(DIMLESS, (3,)),
-}
-BODY_FLAGS = {"fixed", "collide"}
-MARKER_FIELDS = {"position": spec(LENGTH, (3,)), "color": spec(DIMLESS, (3,)),
-                 "radius": spec(LENGTH)}
-GROUND_FIELDS = {"normal": spec(DIMLESS, (3,)), "point": spec(LENGTH, (3,)),
-                 "color": spec(DIMLESS, (3,))}
-MATERIAL_FIELDS = {"ambient": spec(DIMLESS), "diffuse": spec(DIMLESS)}
-SHAPE_ARGS = {
-    "sphere": {"radius": spec(LENGTH)},
-    "box": {"size": spec(LENGTH, (3,))},
-    "cylinder": {"radius": spec(LENGTH), "length": spec(LENGTH)},
-    "capsule": {"radius": spec(LENGTH), "length": spec(LENGTH)},
-    "plane": {"normal": spec(DIMLESS, (3,))},
-    "mesh": {},
-}
-JOINT_KINDS = ("hinge", "slider", "ball", "free", "fixed")
-DH_FIELDS = {"a": spec(LENGTH), "alpha": spec(ANGLE), "d": spec(LENGTH), "theta": spec(ANGLE)}
-CAMERA_FIELDS = {"position": spec(LENGTH, (3,)), "look_at": spec(LENGTH, (3,)),
-                 "up": spec(DIMLESS, (3,)), "fov": spec(ANGLE), "background": spec(DIMLESS, (3,))}
-LIGHT_FIELDS = {"direction": spec(DIMLESS, (3,)), "ambient": spec(DIMLESS, None),
-                "diffuse": spec(DIMLESS, None)}
-WORLD_FIELDS = {"gravity", "timestep", "duration", "substeps", "integrator", "contact", "medium"}
-INTEGRATORS = ("semi_implicit_euler", "rk4")
-CONTACT_MODELS = ("lcp", "compliant")
 BODY_QUANTITIES = {"position": (("x", "y", "z"), LENGTH), "orientation": (("qw", "qx", "qy", "qz"), DIMLESS),
                    "velocity": (("vx", "vy", "vz"), VEL),
                    "angular_velocity": (("wx", "wy", "wz"), ANGVEL)}
 JOINT_QUANTITIES = {"angle": ("angle",), "angular_rate": ("rate",)}
-OBSERVE_FIELDS = {"noise", "model", "df", "offset", "gain", "delay"}
-FUNCS = {"sqrt", "sin", "cos", "tan", "exp", "log", "abs", "atan2", "norm", "euler", "quat",
-         "axis_angle"}
 
 
 class _Poisoned(PhysError):
     """A reference to a field that already failed: not reported again."""
 
-
-def close(name: str, options) -> str:
-    """' (did you mean 'a' or 'b'?)' or ''."""
-    found = difflib.get_close_matches(name, sorted(set(options)), n=3, cutoff=0.6)
-    if not found:
-        return ""
-    return " (did you mean " + " or ".join(f"'{f}'" for f in found) + "?)"
-
-
-def _const(value) -> E.Const:
-    arr = np.asarray(value, dtype=float)
-    return E.Const(float(arr) if arr.ndim == 0 else _tup(arr.tolist()))
-
-
-def _tup(x):
-    return tuple(_tup(i) for i in x) if isinstance(x, list) else float(x)
-
-
-_NP = {"+": np.add, "-": np.subtract, "*": np.multiply, "/": np.divide, "^": np.power}
-_NPF = {"sqrt": np.sqrt, "sin": np.sin, "cos": np.cos, "tan": np.tan, "exp": np.exp,
-        "log": np.log, "abs": np.abs, "atan2": np.arctan2, "norm": np.linalg.norm}
-
-
-def _binary(op: str, a: E.Expr, b: E.Expr) -> E.Expr:
-    if isinstance(a, E.Const) and isinstance(b, E.Const):
-        with np.errstate(all="ignore"):
-            return _const(_NP[op](a.array(), b.array()))
-    return E.Binary(op, a, b)
-
-
-def _call(func: str, args: tuple) -> E.Expr:
-    if all(isinstance(a, E.Const) for a in args):
-        with np.errstate(all="ignore"):
-            if func in _NPF:
-                return _const(_NPF[func](*[a.array() for a in args]))
-            fn, _ = E.FUNCTIONS[func]
-            return _const(np.asarray(fn(*[a.array() for a in args])))
-    return E.Call(func, args)
-
-
-def _vec(items: list[E.Expr]) -> E.Expr:
-    if all(isinstance(i, E.Const) for i in items):
-        return E.Const(tuple(i.value for i in items))
-    return E.Vec(tuple(items))
-
-
-def _broadcast(a, b, span, what="combine") -> tuple[int, ...]:
-    try:
-        return tuple(np.broadcast_shapes(a, b))
-    except ValueError:
-        raise PhysTypeError(f"cannot {what} values of shapes {a} and {b}", span) from None
-
-
-def _shape_words(shape) -> str:
-    if shape == ():
-        return "a single number"
-    if len(shape) == 1:
-        return f"{shape[0]} numbers"
-    return "an array of shape " + "x".join(map(str, shape))
 
 
 class Resolver:
@@ -184,6 +64,7 @@ class Resolver:
         self.resolved_order: list[str] = []
         self.items_by_name: dict[str, str] = {}  # body/joint/camera name -> kind
         self.src_of: dict[str, str] = {}
+        self.scope = Scope(self.lookup, self.is_param, self.err)
 
     # ---- errors ----------------------------------------------------------------------------
     def err(self, cls, msg, span, hint=None, source=None):
@@ -250,147 +131,26 @@ class Resolver:
         return self.check(r, spec_, label, node)
 
     def check(self, r: R, spec_: Spec, label: str, node) -> R:
-        span = getattr(node, "span", None)
-        if r.dim is not None and not any(r.dim.same(d) for d in spec_.dims):
-            want = spec_.dims[0]
-            if isinstance(node, ast.WithUnit):
-                example = self._example(node.value, want)
-                raise self.err(
-                    PhysUnitError,
-                    f"unit '{node.unit}' is {r.dim.name().split(' (')[0]}, but '{label}' needs "
-                    f"{want.name()}", span, f"write the {label.replace('_', ' ')} in "
-                    f"{want.si_text()}, e.g. {example}")
-            alts = " or ".join(d.name() for d in spec_.dims)
-            raise self.err(PhysUnitError, f"'{label}' needs {alts}, but this value is "
-                           f"{r.dim.name()}", span, f"write it in {spec_.dims[0].si_text()}")
-        if spec_.shape is not None and r.shape != spec_.shape:
-            raise self.err(PhysTypeError, f"'{label}' needs {_shape_words(spec_.shape)}, got "
-                           f"{_shape_words(r.shape)}", span,
-                           f"e.g. {label}: ({', '.join(['0'] * spec_.shape[0])})"
-                           if len(spec_.shape) == 1 else None)
-        if spec_.constant and not E.is_constant(r.expr):
-            raise self.err(PhysTypeError, f"'{label}' must be a known value, not an unknown",
-                           span, "write a number with a unit")
-        return R(r.expr, r.dim if r.dim is not None else spec_.dims[0], r.shape)
-
-    def _example(self, node, dim: Dim) -> str:
-        from .printer import format_expr
-        try:
-            return f"{format_expr(node)} {dim.si_text()}"
-        except Exception:  # noqa: BLE001
-            return dim.si_text()
+        return check(r, spec_, label, node, self.err)
 
     # ---- expressions -------------------------------------------------------------------------
     def expr(self, node) -> R:
-        span = getattr(node, "span", None)
-        if isinstance(node, ast.Num):
-            return R(E.Const(node.value), None, ())
-        if isinstance(node, ast.Name):
-            return self.name(node)
-        if isinstance(node, ast.Dotted):
-            return self.dotted(node)
-        if isinstance(node, ast.Vector):
-            rs = [self.expr(i) for i in node.items]
-            dim = self.unify([r.dim for r in rs], [getattr(i, "span", span) for i in node.items],
-                             "put in one vector")
-            shapes = {r.shape for r in rs}
-            if len(shapes) > 1:
-                raise self.err(PhysTypeError, "the items of a vector must have the same shape",
-                               span)
-            return R(_vec([r.expr for r in rs]), dim, (len(rs),) + rs[0].shape)
-        if isinstance(node, ast.Neg):
-            r = self.expr(node.operand)
-            if isinstance(r.expr, E.Const):
-                return R(_const(-r.expr.array()), r.dim, r.shape)
-            return R(E.Unary("-", r.expr), r.dim, r.shape)
-        if isinstance(node, ast.BinOp):
-            return self.binop(node)
-        if isinstance(node, ast.WithUnit):
-            return self.with_unit(node)
-        if isinstance(node, ast.Call):
-            return self.call(node, None)
-        if isinstance(node, ast.Str):
-            raise self.err(PhysTypeError, f"a string (\"{node.value}\") is not a value here", span,
-                           "numbers, vectors and names go here")
-        if isinstance(node, ast.Record):
-            raise self.err(PhysTypeError, "named values in parentheses only go in 'dh:'", span)
-        if isinstance(node, ast.Dist):
-            raise self.err(PhysTypeError, "'~ dist(...)' only goes right after a field name", span)
-        raise self.err(PhysTypeError, "not a value", span)
+        """The R of an expression written in this scene (``expressions.to_expr``)."""
+        return to_expr(node, self.scope)
 
-    def unify(self, dims, spans, what="add") -> Dim | None:
-        known = [(d, s) for d, s in zip(dims, spans) if d is not None]
-        if not known:
-            return None
-        d0, _ = known[0]
-        for d, s in known[1:]:
-            if not d.same(d0):
-                raise self.err(PhysUnitError, f"cannot {what} {d0.name()} and {d.name()}", s,
-                               "both sides need the same kind of unit")
-        return d0
+    def lookup(self, node) -> R:
+        """The R a name or dotted path of the scene refers to (resolved on demand)."""
+        return self.name(node) if isinstance(node, ast.Name) else self.dotted(node)
 
-    def binop(self, node: ast.BinOp) -> R:
-        a, b = self.expr(node.left), self.expr(node.right)
-        op = node.op
-        shape = _broadcast(a.shape, b.shape, node.span)
-        if op in "+-":
-            dim = self.unify([a.dim, b.dim], [node.left.span, node.right.span],
-                             "add" if op == "+" else "subtract")
-            return R(_binary(op, a.expr, b.expr), dim, shape)
-        if op in "*/":
-            if a.dim is None and b.dim is None:
-                dim = None
-            else:
-                da, db = a.dim or DIMLESS, b.dim or DIMLESS
-                dim = da * db if op == "*" else da / db
-            return R(_binary(op, a.expr, b.expr), dim, shape)
-        # power: the exponent is a known plain number
-        if b.dim is not None and not b.dim.dimensionless:
-            raise self.err(PhysUnitError, f"an exponent must be a plain number, not {b.dim.name()}",
-                           node.right.span)
-        if a.dim is not None and not a.dim.dimensionless and not isinstance(b.expr, E.Const):
-            raise self.err(PhysTypeError, "the exponent of a value with a unit must be a known number",
-                           node.right.span)
-        dim = a.dim ** float(np.asarray(b.expr.value)) if (a.dim is not None and isinstance(b.expr, E.Const)
-                                                          and np.ndim(b.expr.value) == 0) else a.dim
-        return R(_binary("^", a.expr, b.expr), dim, shape)
-
-    def unit(self, text: str, span: Span | None) -> tuple[float, Dim]:
-        try:
-            return parse_unit(text)
-        except UnitError as ex:
-            hint = None
-            if "/" in text or "*" in text:
-                hint = "to divide by a value, put spaces around '/': '2 m / L'"
-            sugg = close(ex.part, known_units())
-            raise self.err(PhysUnitError, f"{ex}{sugg}", span,
-                           hint or "units: m cm mm km g kg s ms min h Hz N J W Pa rad deg, "
-                                   "products N*m, quotients m/s, powers m/s^2") from None
-
-    def with_unit(self, node: ast.WithUnit) -> R:
-        for part in re.findall(r"[A-Za-z_][A-Za-z0-9_]*", node.unit):
-            if part in self.sources and "." not in part and not _is_unit(part):
-                hint = (f"write '* {part}' to multiply by it" if node.unit == part else
-                        f"put spaces around '/' or '*' to compute with it, e.g. '1 m / {part}'")
-                raise self.err(PhysUnitError, f"'{part}' in the unit '{node.unit}' is a param, not a "
-                               "unit", node.unit_span, hint)
-        scale, udim = self.unit(node.unit, node.unit_span)
-        if isinstance(node.value, ast.Call) and node.value.func == "euler":
-            return self.call(node.value, (scale, udim, node.unit_span))
-        r = self.expr(node.value)
-        if r.dim is not None and not (r.dim.dimensionless and not r.dim.is_angle):
-            raise self.err(PhysUnitError, f"this value already has a unit ({r.dim.si_text()}); "
-                           f"cannot add '{node.unit}'", node.unit_span,
-                           "write the unit once, after the number or the parentheses")
-        e = r.expr if scale == 1.0 else _binary("*", r.expr, E.Const(scale))
-        return R(e, udim, r.shape)
+    def is_param(self, word: str) -> bool:
+        return word in self.sources and "." not in word
 
     def name(self, node: ast.Name) -> R:
         n = node.name
         if n in self.sources and "." not in n:
             return self.value(n, node.span)
         if n == "pi":
-            return R(E.Const(float(np.pi)), None, ())
+            return PI
         if n in self.items_by_name:
             kind = self.items_by_name[n]
             fields = sorted(p.split(".", 1)[1] for p in self.sources if p.startswith(n + "."))
@@ -413,81 +173,6 @@ class Resolver:
                            "only fields written in the scene (and shape sizes) can be referred to")
         names = list(self.items_by_name) + [p for p in self.sources if "." not in p]
         raise self.err(PhysNameError, f"unknown name '{head}'{close(head, names)}", node.span)
-
-    def call(self, node: ast.Call, unit) -> R:
-        f = node.func
-        span = node.span
-        if f in SHAPE_ARGS:
-            raise self.err(PhysTypeError, f"a shape ('{f}(...)') only goes in 'shape:'", span)
-        if f not in FUNCS:
-            raise self.err(PhysNameError, f"unknown function '{f}'{close(f, FUNCS)}", span,
-                           "functions: " + ", ".join(sorted(FUNCS)))
-        for a in node.args:
-            if a.name is not None and f not in ("euler", "quat", "axis_angle"):
-                raise self.err(PhysTypeError, f"'{f}' takes no named arguments", a.span)
-        rs = [self.expr(a.value) for a in node.args]
-        if f == "euler":
-            if len(rs) == 3 and all(r.shape == () for r in rs):
-                vec, dims = _vec([r.expr for r in rs]), [r.dim for r in rs]
-            elif len(rs) == 1 and rs[0].shape == (3,):
-                vec, dims = rs[0].expr, [rs[0].dim]
-            else:
-                raise self.err(PhysTypeError, "euler(...) takes three angles (about x, y, z)", span,
-                               "e.g. euler(0, 0, 90) deg")
-            for d, a in zip(dims, node.args):
-                if d is not None and not d.dimensionless:
-                    raise self.err(PhysUnitError, f"euler angles must be angles, not {d.name()}", a.span)
-            if unit is not None:
-                scale, udim, uspan = unit
-                if not udim.is_angle:
-                    raise self.err(PhysUnitError, f"euler(...) needs an angle unit (deg or rad), "
-                                   f"not '{udim.si_text()}'", uspan, "e.g. euler(0, 0, 90) deg")
-                vec = _binary("*", vec, E.Const(scale))
-            return R(_call("quat_from_euler", (vec,)), DIMLESS, (4,))
-        if unit is not None:
-            raise self.err(PhysUnitError, "a unit after a function call only works for euler(...)",
-                           span)
-        if f == "quat":
-            if len(rs) == 4 and all(r.shape == () for r in rs):
-                q = _vec([r.expr for r in rs])
-            elif len(rs) == 1 and rs[0].shape == (4,):
-                q = rs[0].expr
-            else:
-                raise self.err(PhysTypeError, "quat(...) takes four numbers w, x, y, z", span)
-            if isinstance(q, E.Const):
-                arr = q.array()
-                n = float(np.linalg.norm(arr))
-                if n == 0:
-                    raise self.err(PhysTypeError, "a quaternion cannot be zero", span,
-                                   "the identity is quat(1, 0, 0, 0)")
-                q = _const(arr / n)
-            return R(q, DIMLESS, (4,))
-        if f == "axis_angle":
-            if len(rs) != 2 or rs[0].shape != (3,) or rs[1].shape != ():
-                raise self.err(PhysTypeError, "axis_angle(axis, angle) takes a 3-vector and an angle",
-                               span)
-            return R(_call("quat_from_axis_angle", (rs[0].expr, rs[1].expr)), DIMLESS, (4,))
-        arity = E.FUNCTIONS[f][1]
-        if len(rs) != arity:
-            raise self.err(PhysTypeError, f"'{f}' takes {arity} argument{'s' * (arity > 1)}, "
-                           f"got {len(rs)}", span)
-        if f in ("sin", "cos", "tan", "exp", "log"):
-            d = rs[0].dim
-            if d is not None and not d.dimensionless:
-                raise self.err(PhysUnitError, f"'{f}' needs an angle or a plain number, not "
-                               f"{d.name()}", node.args[0].span)
-            return R(_call(f, (rs[0].expr,)), None, rs[0].shape)
-        if f == "sqrt":
-            d = rs[0].dim
-            return R(_call(f, (rs[0].expr,)), d ** 0.5 if d is not None else None, rs[0].shape)
-        if f == "abs":
-            return R(_call(f, (rs[0].expr,)), rs[0].dim, rs[0].shape)
-        if f == "norm":
-            return R(_call(f, (rs[0].expr,)), rs[0].dim, ())
-        # atan2
-        self.unify([rs[0].dim, rs[1].dim], [a.span for a in node.args], "compare")
-        shape = _broadcast(rs[0].shape, rs[1].shape, span)
-        return R(_call("atan2", (rs[0].expr, rs[1].expr)), ANGLE, shape)
 
     # ---- distributions and unknowns ----------------------------------------------------------
     def prior(self, node: ast.Dist, dim: Dim | None, own: str | None = None):
@@ -556,7 +241,7 @@ class Resolver:
                 ok = dists.satisfies(c, r.expr.array())
                 if ok is False:
                     raise self.err(PhysTypeError, f"{node.name}'s '{n}' must be "
-                                   f"{dists.constraint_words(c)}, got {_fmt(r.expr.array())}",
+                                   f"{dists.constraint_words(c)}, got {fmt(r.expr.array())}",
                                    a.value.span)
         if node.name == "uniform" and "low" in bound and "high" in bound:
             lo, hi = bound["low"][1].expr, bound["high"][1].expr
@@ -571,7 +256,7 @@ class Resolver:
         if shape is None:
             shape = ()
             for (a, r) in bound.values():
-                shape = _broadcast(shape, r.shape, node.span)
+                shape = broadcast(shape, r.shape, node.span)
         prior = Prior(node.name, tuple(bound[n][1].expr for kw, n in order if kw is None),
                       tuple((n, bound[n][1].expr) for kw, n in order if kw is not None))
         return prior, shape, target, discrete, support
@@ -583,10 +268,10 @@ class Resolver:
                 dshape = shape
             else:
                 label = path.rsplit(".", 1)[-1]
-                raise self.err(PhysTypeError, f"the prior of '{label}' draws {_shape_words(dshape)}, "
-                               f"but '{label}' needs {_shape_words(shape)}", node.span)
+                raise self.err(PhysTypeError, f"the prior of '{label}' draws {shape_words(dshape)}, "
+                               f"but '{label}' needs {shape_words(shape)}", node.span)
         if spec_ is not None and spec_.shape is None and dshape not in ((), (3,)):
-            raise self.err(PhysTypeError, f"the prior draws {_shape_words(dshape)}; "
+            raise self.err(PhysTypeError, f"the prior draws {shape_words(dshape)}; "
                            "a single number or 3 numbers are needed", node.span)
         if spec_ is not None and spec_.constant:
             raise self.err(PhysTypeError, f"'{path.rsplit('.', 1)[-1]}' must be a known value, "
@@ -1313,7 +998,7 @@ class Resolver:
             for f in frames:
                 if isinstance(f, Path):  # a frame file may be a link out of the folder
                     self.bounds.check(f, "image file", f.name, item.span, self.source)
-            return Observation_(name, t, q, file, times, np.zeros((len(times), 0)),
+            return Observation(name, t, q, file, times, np.zeros((len(times), 0)),
                                 np.zeros((len(times), 0), bool), (), noise, frames, item.span)
         if item.rate is not None or item.times is not None:
             raise self.err(PhysStructureError, "'at' and 'times' are for image observations; "
@@ -1321,13 +1006,8 @@ class Resolver:
         check_label(self, item, file, self.items_by_name)  # the label may differ from t
         times, values, mask = read_observation(file, cols, item.where, item.span)
         sensor = resolve_sensor(self, item, name, qdim, dim, fs)
-        return Observation_(name, t, q, file, times, values, mask, tuple(cols), noise, (), item.span,
+        return Observation(name, t, q, file, times, values, mask, tuple(cols), noise, (), item.span,
                             sensor)
-
-
-def Observation_(*args):
-    from ..scene import Observation
-    return Observation(*args)
 
 
 class _Any:
@@ -1338,19 +1018,6 @@ class _Any:
 
     def __iter__(self):
         return iter(())
-
-
-def _is_unit(symbol: str) -> bool:
-    try:
-        lookup(symbol)
-        return True
-    except UnitError:
-        return False
-
-
-def _fmt(arr: np.ndarray) -> str:
-    arr = np.asarray(arr)
-    return f"{float(arr):g}" if arr.ndim == 0 else "(" + ", ".join(f"{v:g}" for v in arr.ravel()) + ")"
 
 
 def resolve(module: ast.Module, source: str, base_dir: Path, path: Path | None = None,

@@ -8,6 +8,7 @@ import numpy as np
 from .. import expr as E
 from ..errors import PhysTypeError
 from ..scene import Sensor
+from .schema import Spec, spec
 from .units import DIMLESS, TIME
 
 SENSOR_FIELDS = ("offset", "gain", "delay")
@@ -20,8 +21,6 @@ def resolve_sensor(res, item, name: str, qdim, dim: int, fs) -> Sensor | None:
 
     ``res`` is the Resolver (register/value/err), ``qdim`` the quantity's dimension, ``dim``
     its number of axes: an offset is one number or one per axis, gain and delay one number."""
-    from .resolve import Spec, spec
-
     present = [k for k in SENSOR_FIELDS if k in fs]
     if not present:
         return None

@@ -82,6 +82,14 @@ LENGTH = Dim.of(m=1)
 MASS = Dim.of(kg=1)
 TIME = Dim.of(s=1)
 ANGLE = Dim.of(rad=1)
+VEL = Dim.of(m=1, s=-1)
+ACC = Dim.of(m=1, s=-2)
+ANGVEL = Dim.of(rad=1, s=-1)
+FREQ = Dim.of(s=-1)
+FORCE = Dim.of(kg=1, m=1, s=-2)
+TORQUE = Dim.of(kg=1, m=2, s=-2)
+DENSITY = Dim.of(kg=1, m=-3)
+INERTIA = Dim.of(kg=1, m=2)
 
 # (scale to SI, dimension) of unprefixed units
 _BASE_UNITS: dict[str, tuple[float, Dim]] = {
