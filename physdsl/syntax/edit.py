@@ -1,7 +1,8 @@
-"""Pure text -> text edits of a .phys source, through the AST and the printer (comments kept).
-
-Used by ``add-effect``, ``refine`` and friends: ``add_effect``, ``add_param``,
-``replace_value``, ``remove_item``. Values are given as .phys value text (``"0.3 kg"``, ``"~ half_normal(1 cm)"``).
+"""Pure edits of a .phys scene: on its AST (``effect_added``, ``param_added``, ``value_set``,
+``item_removed``: Module -> Module, what the diagnosis and refine loop use, parsing nothing but
+the value text) and on its text (``add_effect``, ``add_param``, ``replace_value``,
+``remove_item``: parse, edit the AST, print with comments kept). Values are given as .phys value
+text (``"0.3 kg"``, ``"~ half_normal(1 cm)"``).
 """
 from __future__ import annotations
 
@@ -10,11 +11,9 @@ import dataclasses
 from ..errors import PhysNameError
 from . import ast
 from .ast import strip_spans
+from .contact_sugar import SUGAR_FIELD, SUGAR_PARAM
 from .parser import parse, parse_field
 from .printer import format_module
-
-_CONTACT_KEYS = {"contact_friction": "friction", "restitution": "restitution",
-                 "rolling_resistance": "rolling_resistance"}
 
 
 def _field(key: str, value_text: str) -> ast.Field:
@@ -38,24 +37,26 @@ def _target(target) -> tuple[str, ...]:
     return tuple(target)
 
 
-def add_effect(text: str, effect: str, target, params: dict[str, str] | None = None,
-               filename: str = "<string>") -> str:
+def effect_added(module: ast.Module, effect: str, target, params: dict[str, str] | None = None
+                 ) -> ast.Module:
     """Append ``effect EFFECT on TARGET { params }`` inside the scene block."""
-    module = parse(text, filename)
+    if module.scene is None:
+        raise PhysNameError("the text holds no scene")
     fields = tuple(_field(k, v) for k, v in (params or {}).items())
     item = ast.EffectItem(effect, _target(target), ast.Block(fields) if fields else None)
-    return format_module(_with_scene_items(module, module.scene.items + (item,)), text)
+    return _with_scene_items(module, module.scene.items + (item,))
 
 
-def add_param(text: str, name: str, value_text: str, filename: str = "<string>") -> str:
+def param_added(module: ast.Module, name: str, value_text: str) -> ast.Module:
     """Declare ``param NAME VALUE`` in the scene block, after its last param (first if none)."""
-    module = parse(text, filename)
+    if module.scene is None:
+        raise PhysNameError("the text holds no scene")
     items = list(module.scene.items)
     if any(isinstance(it, ast.Param) and it.name == name for it in items):
         raise PhysNameError(f"the scene already has a param '{name}'")
     last = max((i for i, it in enumerate(items) if isinstance(it, ast.Param)), default=-1)
     items.insert(last + 1, _param(name, value_text))
-    return format_module(_with_scene_items(module, items), text)
+    return _with_scene_items(module, items)
 
 
 def _set_field(block: ast.Block | None, key_path: list[str], value_text: str) -> ast.Block:
@@ -114,51 +115,56 @@ def _set_arg(node, name: str, value):
     return dataclasses.replace(node, **{attr: tuple(args)})
 
 
-def replace_value(text: str, path: str, value_text: str, filename: str = "<string>") -> str:
+def value_set(module: ast.Module, path: str, value_text: str) -> ast.Module:
     """Set the value at ``path``: a param ``L``, a field ``ball.velocity`` / ``rod.shape.radius``,
     an effect parameter ``quadratic_drag@ball.coefficient`` or a noise ``ball.position.noise``.
     A missing field or effect parameter is added."""
-    module = parse(text, filename)
     items = list(module.scene.items) if module.scene else []
     if "@" in path:
-        key, param = path.rsplit(".", 1)
-        effect, target = key.split("@", 1)
-        tgt = _target(target)
-        for i, it in enumerate(items):
-            if isinstance(it, ast.EffectItem) and it.effect == effect and \
-                    (it.target == tgt or (len(tgt) == 2 and set(it.target) == set(tgt))):
-                items[i] = dataclasses.replace(it, block=_set_field(it.block, [param], value_text))
-                return format_module(_with_scene_items(module, items), text)
-            if isinstance(it, ast.ContactItem) and effect in _CONTACT_KEYS and \
-                    {it.a, it.b} == set(tgt) and param == "coefficient":
-                items[i] = dataclasses.replace(
-                    it, block=_set_field(it.block, [_CONTACT_KEYS[effect]], value_text))
-                return format_module(_with_scene_items(module, items), text)
-            if isinstance(it, ast.WorldItem) and effect == "gravity" and param == "acceleration":
-                items[i] = dataclasses.replace(it, block=_set_field(it.block, ["gravity"], value_text))
-                return format_module(_with_scene_items(module, items), text)
-        raise PhysNameError(f"no effect '{key}' in the scene")
+        return _effect_value_set(module, items, path, value_text)
     parts = path.split(".")
     if len(parts) == 1:
         for i, it in enumerate(items):
             if isinstance(it, ast.Param) and it.name == path:
                 items[i] = dataclasses.replace(_param(path, value_text), span=it.span)
-                return format_module(_with_scene_items(module, items), text)
+                return _with_scene_items(module, items)
         raise PhysNameError(f"no param '{path}' in the scene")
     head, rest = parts[0], parts[1:]
     for i, it in enumerate(items):
         if isinstance(it, ast.ObserveItem) and f"{it.target}.{it.quantity}" == ".".join(parts[:2]) \
                 and len(rest) == 2:
             items[i] = dataclasses.replace(it, block=_set_field(it.block, rest[1:], value_text))
-            return format_module(_with_scene_items(module, items), text)
+            return _with_scene_items(module, items)
     for i, it in enumerate(items):
         name = getattr(it, "name", None)
         if head == "world" and isinstance(it, ast.WorldItem) or head == "light" and \
                 isinstance(it, ast.LightItem) or (name == head and hasattr(it, "block")
                                                   and not isinstance(it, ast.Param)):
             items[i] = dataclasses.replace(it, block=_set_field(it.block, rest, value_text))
-            return format_module(_with_scene_items(module, items), text)
+            return _with_scene_items(module, items)
     raise PhysNameError(f"nothing called '{head}' in the scene")
+
+
+def _effect_value_set(module: ast.Module, items: list, path: str, value_text: str) -> ast.Module:
+    """``value_set`` of an effect parameter ``EFFECT@TARGET.PARAM``: in its effect item, a
+    contact block's sugar field (``contact_sugar``) or the world's gravity."""
+    key, param = path.rsplit(".", 1)
+    effect, target = key.split("@", 1)
+    tgt = _target(target)
+    for i, it in enumerate(items):
+        if isinstance(it, ast.EffectItem) and it.effect == effect and \
+                (it.target == tgt or (len(tgt) == 2 and set(it.target) == set(tgt))):
+            items[i] = dataclasses.replace(it, block=_set_field(it.block, [param], value_text))
+            return _with_scene_items(module, items)
+        if isinstance(it, ast.ContactItem) and effect in SUGAR_FIELD and \
+                {it.a, it.b} == set(tgt) and param == SUGAR_PARAM:
+            items[i] = dataclasses.replace(
+                it, block=_set_field(it.block, [SUGAR_FIELD[effect]], value_text))
+            return _with_scene_items(module, items)
+        if isinstance(it, ast.WorldItem) and effect == "gravity" and param == "acceleration":
+            items[i] = dataclasses.replace(it, block=_set_field(it.block, ["gravity"], value_text))
+            return _with_scene_items(module, items)
+    raise PhysNameError(f"no effect '{key}' in the scene")
 
 
 def _param(name: str, value_text: str) -> ast.Param:
@@ -190,15 +196,14 @@ def _item_name(it) -> tuple[str, str] | None:
     return None
 
 
-def remove_item(text: str, kind: str, name: str, filename: str = "<string>") -> str:
+def item_removed(module: ast.Module, kind: str, name: str) -> ast.Module:
     """Remove the item ``kind`` ``name`` (e.g. 'effect', 'quadratic_drag@ball'; 'body', 'ball';
     'observe', 'ball.position'; 'contact', 'floor,ball'; 'import', 'effects/drag.phys')."""
-    module = parse(text, filename)
     if kind == "import":
         kept = tuple(i for i in module.items if not (isinstance(i, ast.Import) and i.path == name))
         if len(kept) == len(module.items):
             raise PhysNameError(f"no import \"{name}\"")
-        return format_module(dataclasses.replace(module, items=kept), text)
+        return dataclasses.replace(module, items=kept)
     want = (kind, name.replace(" ", ""))
     items = list(module.scene.items) if module.scene else []
     kept = []
@@ -214,7 +219,30 @@ def remove_item(text: str, kind: str, name: str, filename: str = "<string>") -> 
     removed = [it for it in items if it not in kept]
     comments = tuple(c for c in module.comments if not any(_inside(c, it) for it in removed))
     module = dataclasses.replace(module, comments=comments)
-    return format_module(_with_scene_items(module, kept), text)
+    return _with_scene_items(module, kept)
+
+
+
+# -- the same edits on text: parse, edit the AST, print (comments and blank lines kept) ---------
+def add_effect(text: str, effect: str, target, params: dict[str, str] | None = None,
+               filename: str = "<string>") -> str:
+    """``effect_added`` on .phys text."""
+    return format_module(effect_added(parse(text, filename), effect, target, params), text)
+
+
+def add_param(text: str, name: str, value_text: str, filename: str = "<string>") -> str:
+    """``param_added`` on .phys text."""
+    return format_module(param_added(parse(text, filename), name, value_text), text)
+
+
+def replace_value(text: str, path: str, value_text: str, filename: str = "<string>") -> str:
+    """``value_set`` on .phys text."""
+    return format_module(value_set(parse(text, filename), path, value_text), text)
+
+
+def remove_item(text: str, kind: str, name: str, filename: str = "<string>") -> str:
+    """``item_removed`` on .phys text."""
+    return format_module(item_removed(parse(text, filename), kind, name), text)
 
 
 def _same_pair(a: str, b: str) -> bool:
