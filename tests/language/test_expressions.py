@@ -15,7 +15,6 @@ from physdsl.syntax.expressions import R, Scope, to_expr
 from physdsl.syntax.parser import parse_field
 from physdsl.syntax.units import ANGLE, LENGTH, Dim
 
-jax.config.update("jax_enable_x64", True)
 
 def value(text: str, scope: Scope = Scope()) -> R:
     return to_expr(parse_field(f"x: {text}").value, scope)
