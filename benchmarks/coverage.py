@@ -20,6 +20,8 @@ Run: .venv/bin/python benchmarks/coverage.py [--case pendulum ...] [--samples 50
 """
 from __future__ import annotations
 
+import physdsl
+
 import argparse
 import json
 import os
@@ -79,7 +81,7 @@ def run_case(name: str, samples: int) -> dict:
     model = Model(loads(scene_text(folder), filename=str(folder / "scene.phys"),
                         base_dir=folder))
     t0 = time.time()
-    idata = model.infer(backend="map", chains=2, samples=samples, progress=False)
+    idata = physdsl.infer(model, backend="map", chains=2, samples=samples, progress=False)
     wall = time.time() - t0
     truth = truth_values(folder, model.unknown_names)
     rows = []

@@ -19,6 +19,8 @@ Run: .venv/bin/python benchmarks/fits.py [--case pendulum [--case chain_hit]] [-
 """
 from __future__ import annotations
 
+import physdsl
+
 import argparse
 import json
 import os
@@ -79,7 +81,7 @@ def run_case(name: str, samples: int, seed: int) -> dict:
     model = Model(loads(scene_text(folder, scene), filename=str(folder / "scene.phys"),
                         base_dir=folder))
     t0 = time.perf_counter()
-    idata = model.infer(backend="map", samples=samples, seed=seed, progress=False)
+    idata = physdsl.infer(model, backend="map", samples=samples, seed=seed, progress=False)
     wall = time.perf_counter() - t0
     values = point_estimate(model, idata)
     r = np.asarray(model.standardized_residuals(values, model.predict(values)))

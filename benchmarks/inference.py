@@ -17,7 +17,7 @@ numpyro program. All run in this one process on the same data and initial positi
   CPU seconds (``compile_cpu_ratio``);
 - ``grad_ms_physdsl``, ``grad_ms_hand``, ``grad_time_ratio`` (compiled over hand-written):
   one jitted value-and-gradient call, median of repeats;
-- ``ess_per_s_physdsl`` (``Model.infer(backend="nuts")``, second run: compiled stages are
+- ``ess_per_s_physdsl`` (``physdsl.infer(model, backend="nuts")``, second run: compiled stages are
   cached, so this is initialisation + warmup + sampling + posterior pass + InferenceData),
   ``ess_per_s_blackjax_hand`` (blackjax NUTS with window adaptation on the hand-written
   density, one jitted vmapped run, after compile; diagonal mass matrix, blackjax's default),
@@ -37,6 +37,8 @@ numpyro program. All run in this one process on the same data and initial positi
 Run: .venv/bin/python benchmarks/inference.py   (a few minutes on 2 loaded cores)
 """
 from __future__ import annotations
+
+import physdsl
 
 import shutil
 import sys
@@ -250,11 +252,11 @@ def main() -> None:
 
     settings = dict(backend="nuts", chains=CHAINS, warmup=WARMUP, samples=SAMPLES, progress=False)
     t0, c0 = time.perf_counter(), time.process_time()
-    model.infer(seed=0, **settings)
+    physdsl.infer(model, seed=0, **settings)
     print(f"physdsl_first_run_s: {time.perf_counter() - t0:.2f}")
     print(f"physdsl_first_run_cpu_s: {time.process_time() - c0:.2f}")
     t0, c0 = time.perf_counter(), time.process_time()
-    idata = model.infer(seed=1, **settings)
+    idata = physdsl.infer(model, seed=1, **settings)
     t_phys, cpu_phys = time.perf_counter() - t0, time.process_time() - c0
     post = idata.posterior
     draws = {"physdsl": np.concatenate([post["ball.position.noise"].values[..., None],

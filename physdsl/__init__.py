@@ -1,6 +1,8 @@
 """physdsl: a probabilistic programming language for physical scenes.
 
-Public API: ``load``, ``parse``, ``compile`` and the error types. Physics and gradient work
+Public API: the functions of ``physdsl.api`` (``load`` -> Scene, ``compile`` -> Model,
+``infer``, ``check``, ``diagnose``, ``refine``, ``add_effect``, ``design_experiment``,
+``render``, ``track``, ``export``, ``sample``), ``parse``, ``Model``, ``Scene`` and the error types. Physics and gradient work
 runs in float64 by default; set ``PHYSDSL_FLOAT32=1`` to trade accuracy for speed.
 """
 from __future__ import annotations
@@ -35,12 +37,18 @@ __all__ = [
     "Scene", "Span", "UsageError", "__version__",
 ]
 
-from .syntax import format_source, load, parse  # noqa: E402  (the .phys language)
-
-__all__ += ["format_source", "load", "parse"]
-
 from .compile import Model  # noqa: E402
-from .compile import compile as compile  # noqa: E402,A001  (text or path -> Model)
-from .diagnose.refine import refine  # noqa: E402
+from .syntax import parse  # noqa: E402  (.phys text -> AST)
 
-__all__ += ["Model", "compile", "refine"]
+__all__ += ["Model", "parse"]
+
+# The api floor: plain functions over Scene, Model and posterior values. ``infer``, ``diagnose``,
+# ``export``, ``sample``, ``render`` and ``track`` here are these functions; the subpackages of
+# the same names stay importable as ``from physdsl.infer.run import ...`` and so on.
+from . import api  # noqa: E402
+from .api import (  # noqa: E402,A004
+    add_effect, check, compile, design_experiment, diagnose, export, export_mjcf, format_source,
+    import_model, infer, load, read_run, refine, render, render_draws, sample, track,
+)
+
+__all__ += list(api.__all__) + ["api"]

@@ -28,23 +28,14 @@ import numpyro.distributions as dist
 from .errors import ModelError, PhysTypeError
 from .expr import evaluate, references
 from .observe import sensor, trajectory
+from .physics import build_simulator
+from .render.likelihood import scene_image_log_likelihood
 from .scene import Observation, Prior, Scene, Unknown
+from .syntax import load, loads
+from .syntax.dists import find
 
 PRED_PREFIX = "pred:"
 OBS_PREFIX = "obs:"
-
-
-def distribution_class(name: str):
-    """numpyro distribution class (or factory, e.g. ``truncated_normal``) of a snake_case name.
-
-    The language's checker already resolved the same name, so this lookup is the one it used.
-    """
-    from .syntax.dists import find
-
-    cls = find(name)
-    if cls is None:
-        raise PhysTypeError(f"unknown distribution '{name}'")
-    return cls
 
 
 def build_distribution(prior: Prior, values, shape: tuple[int, ...]):
@@ -54,7 +45,9 @@ def build_distribution(prior: Prior, values, shape: tuple[int, ...]):
     transform, so it is in the support by construction, and a non-finite log density is caught
     by ``safe_logdensity``; the check would only add a select to every log-probability.
     """
-    cls = distribution_class(prior.dist)
+    cls = find(prior.dist)
+    if cls is None:  # the checker resolved the same name with the same table
+        raise PhysTypeError(f"unknown distribution '{prior.dist}'")
     args = [evaluate(a, values) for a in prior.args]
     kwargs = {k: evaluate(v, values) for k, v in prior.kwargs}
     d = cls(*args, **kwargs, validate_args=False)
@@ -164,8 +157,6 @@ class Compiled:
     """
 
     def __init__(self, scene: Scene):
-        from .physics import build_simulator
-
         self.simulator = build_simulator(scene)
         self.cache: dict = {}
 
@@ -175,7 +166,8 @@ _COMPILED: "weakref.WeakValueDictionary[str, Compiled]" = weakref.WeakValueDicti
 
 
 class Model:
-    """A compiled scene: simulate, predict, the numpyro program, and inference entry points."""
+    """A compiled scene: simulate, predict, the likelihood and the numpyro program (inference,
+    checks and diagnosis are functions over it: ``physdsl.api``)."""
 
     def __init__(self, scene: Scene, until: float | None = None):
         self.scene = scene
@@ -300,9 +292,7 @@ class Model:
             numpyro.factor(OBS_PREFIX + obs.name, self.image_log_likelihood(obs, rollout, values))
 
     def image_log_likelihood(self, obs: Observation, rollout, values):
-        """Log-likelihood of one camera's frames given the rollout (see physdsl.observe.image)."""
-        from .observe.image import scene_image_log_likelihood
-
+        """Log-likelihood of one camera's frames given the rollout (see physdsl.render.likelihood)."""
         return scene_image_log_likelihood(self, obs, rollout, values)
 
     def log_likelihood(self, values, data=None):
@@ -332,28 +322,6 @@ class Model:
             cache[key] = build()
         return cache[key]
 
-    # -- workflow entry points ----------------------------------------------------------
-    def infer(self, **kwargs):
-        """Posterior over every unknown (see ``physdsl.infer.run.infer``)."""
-        from .infer.run import infer
-
-        return infer(self, **kwargs)
-
-    def check(self, idata, **kwargs):
-        from .diagnose.workflow import check_model
-
-        return check_model(self, idata, **kwargs)
-
-    def diagnose(self, idata, **kwargs):
-        from .diagnose.rank import diagnose
-
-        return diagnose(self, idata, **kwargs)
-
-    def export(self, idata, **kwargs):
-        from .export import export
-
-        return export(self.scene.path, idata, **kwargs)
-
 
 def _interp(d) -> trajectory.Interpolation:
     return trajectory.Interpolation(d["rows"], d["w"])
@@ -364,13 +332,16 @@ def compile_scene(scene: Scene) -> Model:
     return Model(scene)
 
 
-def compile(source: str | Path, allowed_paths=()) -> Model:  # noqa: A001 - the design's name
-    """Load a .phys file (a path) or text and compile it; its imports and data files must lie
-    in its folder tree (text: the working folder's), the stdlib or below ``allowed_paths``."""
-    from . import syntax
-
+def load_source(source: str | Path, allowed_paths=()) -> Scene:
+    """The checked Scene of a .phys file (a ``Path``, or a one-line string ending in ``.phys``)
+    or of .phys text; its imports and data files must lie in its folder tree (text: the
+    working folder's), the stdlib or below ``allowed_paths``."""
     if isinstance(source, Path) or (isinstance(source, str) and "\n" not in source
                                      and source.endswith(".phys")):
-        return Model(syntax.load(source, allowed_paths))
-    return Model(syntax.loads(source, filename="<string>", base_dir=Path.cwd(),
-                              allowed_paths=allowed_paths))
+        return load(source, allowed_paths)
+    return loads(source, filename="<string>", base_dir=Path.cwd(), allowed_paths=allowed_paths)
+
+
+def compile(source: Scene | str | Path, allowed_paths=()) -> Model:  # noqa: A001 - the design's name
+    """The Model of a Scene, or of a .phys file or text (``load_source``)."""
+    return Model(source if isinstance(source, Scene) else load_source(source, allowed_paths))

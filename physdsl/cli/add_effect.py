@@ -21,11 +21,8 @@ def register(app: typer.Typer) -> None:
         force: bool = typer.Option(False, "--force", help="Overwrite an existing output file."),
     ) -> None:
         """Write a new scene with EFFECT on TARGET, its strength an unknown with the library prior."""
-        from .. import io
-        from ..diagnose.candidates import Candidate
-        from ..diagnose.rank import with_effect
-        from ..errors import PhysNameError, UsageError
-        from ..syntax import load, loads
+        from .. import api, io
+        from ..errors import UsageError
 
         if on != "on":
             raise UsageError(f"expected the word 'on' before the target, got '{on}'",
@@ -33,16 +30,6 @@ def register(app: typer.Typer) -> None:
         if out.resolve() == scene.resolve():
             raise UsageError("the output must be a new file", hint="choose another -o path")
         io.refuse_overwrite(out, force)
-        base = load(scene)
-        if effect not in base.effect_library:
-            import difflib
-
-            close = difflib.get_close_matches(effect, list(base.effect_library), n=3)
-            raise PhysNameError(f"unknown effect '{effect}'",
-                                hint=f"did you mean {', '.join(close)}?" if close else
-                                "known effects: " + ", ".join(sorted(base.effect_library)))
-        cand = Candidate("effect", effect, tuple(t.strip() for t in target.strip("()").split(",")))
-        text = with_effect(base, cand)
-        loads(text, filename=str(out), base_dir=scene.parent)  # the result must check
-        io.write_text(out, text)
+        new = api.add_effect(api.load(scene), effect, target)  # the result is checked
+        io.write_text(out, new.source)
         typer.echo(f"wrote {out}")

@@ -20,17 +20,13 @@ def register(app: typer.Typer) -> None:
         force: bool = typer.Option(False, "--force", help="Overwrite a non-empty report folder."),
     ) -> None:
         """Residuals per observable and time window in noise units, misfit shapes, plots, HTML."""
-        from .. import io
-        from ..compile import Model
-        from ..infer.output import load_run
-        from ..syntax import load
-
-        idata, _ = load_run(posterior)  # bad inputs fail before anything compiles
-        io.prepare_outdir(out, force=force)
-        model = Model(load(scene))
+        from .. import api, io
         from ..infer.progress import stage
 
+        idata, _ = api.read_run(posterior)  # bad inputs fail before anything compiles
+        io.prepare_outdir(out, force=force)
+        model = api.compile(scene)
         with stage("check"):  # rollouts, tests and plots: elapsed time on stderr
-            report = model.check(idata, outdir=out, windows=windows)
+            report = api.check(model, idata, outdir=out, windows=windows)
         typer.echo(report.text())
         typer.echo(f"wrote {out}/report.json, report.md, index.html")

@@ -22,17 +22,6 @@ def _range(text: Optional[str]):
     return lo, hi
 
 
-def _values(model, run: Optional[Path]) -> dict:
-    """The fitted values: the most likely draw of ``run``, or of a MAP fit made here."""
-    from ..diagnose.rank import fit_with_fallback
-    from ..diagnose.workflow import point_estimate
-    from ..infer.output import load_run
-
-    idata = load_run(run)[0] if run is not None else fit_with_fallback(
-        model, "map", chains=2, warmup=200, samples=200, seed=0, progress=False)
-    return point_estimate(model, idata)
-
-
 def register(app: typer.Typer) -> None:
     @app.command("design-experiment")
     def design_experiment(
@@ -51,22 +40,16 @@ def register(app: typer.Typer) -> None:
         force: bool = typer.Option(False, "--force", help="Overwrite a non-empty output folder."),
     ) -> None:
         """Propose the setting whose predictions of the two models differ most in noise units."""
-        from .. import io
-        from ..compile import Model
-        from ..design.experiment import OBJECTIVES, design, require_unknown
-        from ..syntax import load
+        from .. import api, io
 
         rng = _range(range_)
-        ma, mb = Model(load(scene_a)), Model(load(scene_b))
-        for field in vary:  # usage errors before any fit
-            require_unknown((ma, mb), field)
-        if objective not in OBJECTIVES:
-            from ..errors import UsageError
-            raise UsageError(f"unknown objective '{objective}'", hint=" or ".join(OBJECTIVES))
-        va, vb = _values(ma, posterior_a), _values(mb, posterior_b)
+        ma, mb = api.compile(scene_a), api.compile(scene_b)
+        idata_a = api.read_run(posterior_a)[0] if posterior_a is not None else None
+        idata_b = api.read_run(posterior_b)[0] if posterior_b is not None else None
+        proposals = api.design_experiment(ma, mb, vary, idata_a=idata_a, idata_b=idata_b,
+                                          rng=rng, objective=objective,
+                                          labels=(scene_a.stem, scene_b.stem))
         io.prepare_outdir(out, force=force)
-        proposals = [design(ma, va, mb, vb, field, rng, objective, (scene_a.stem, scene_b.stem))
-                     for field in vary]
         for p in proposals:
             typer.echo(p.text())
         io.write_json(out / "design.json", {"proposals": [p.to_dict() for p in proposals]})

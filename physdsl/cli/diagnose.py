@@ -20,20 +20,15 @@ def register(app: typer.Typer) -> None:
         force: bool = typer.Option(False, "--force", help="Overwrite a non-empty output folder."),
     ) -> None:
         """Rank candidate missing effects (score tests), confirm the best by refitting."""
-        from .. import io
-        from ..compile import Model
-        from ..diagnose.rank import diagnose as run
-        from ..infer.output import load_run
-        from ..syntax import load
-
-        idata, _ = load_run(posterior)  # bad inputs fail before anything compiles
-        io.prepare_outdir(out, force=force)
-        model = Model(load(scene))
+        from .. import api, io
         from ..infer.progress import stage
 
+        idata, _ = api.read_run(posterior)  # bad inputs fail before anything compiles
+        io.prepare_outdir(out, force=force)
+        model = api.compile(scene)
         with stage("diagnose"):  # score tests and refits (each said as it goes): elapsed time
-            d = run(model, idata, confirm_top=confirm, outdir=out,
-                    echo=lambda line: typer.echo(line, err=True))
+            d = api.diagnose(model, idata, confirm_top=confirm, outdir=out,
+                             echo=lambda line: typer.echo(line, err=True))
         typer.echo(d.table())
         typer.echo(d.verdict)
         if d.winner is not None and d.winner.snippet:

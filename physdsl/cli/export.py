@@ -24,22 +24,27 @@ def register(app: typer.Typer) -> None:
         fmt: str = typer.Option("phys", "--format", help="phys (a proto-program, default) or mjcf (the scene at the posterior medians, for MuJoCo)."),
     ) -> None:
         """Export a posterior as a scene program whose priors are the fitted posterior."""
-        from ..export import export
-        from ..infer.output import load_run
+        from .. import api
+        from ..errors import UsageError
         from ..io import refuse_overwrite, write_text
 
         refuse_overwrite(out, force)
-        if fmt == "mjcf":
-            from ..mjcf.export import export_mjcf_cli
-
-            export_mjcf_cli(scene, posterior, out, bool(free or drop) or widen != 1.0 or not observe)
-            return
-        if fmt != "phys":
-            from ..errors import UsageError
-
+        if fmt not in ("phys", "mjcf"):
             raise UsageError(f"unknown --format '{fmt}'", hint="use phys or mjcf")
-        idata, run = load_run(posterior)
-        text = export(scene, idata, free=tuple(free or ()), drop=tuple(drop or ()), widen=widen,
-                      observe=observe, out_path=out, run=run)
+        if fmt == "mjcf" and (free or drop or widen != 1.0 or not observe):
+            raise UsageError("--free, --drop, --widen and --no-observe shape a proto-program; "
+                             "--format mjcf writes the posterior medians", hint="leave them out")
+        idata, run = api.read_run(posterior)
+        if fmt == "mjcf":
+            text, notes = api.export_mjcf(scene, idata)
+            write_text(out, text)
+            if notes:
+                typer.echo(f"{out}: not expressed in MJCF (listed in its first comment):", err=True)
+                for n in notes:
+                    typer.echo(f"  - {n}", err=True)
+            typer.echo(f"wrote {out}")
+            return
+        text = api.export(scene, idata, free=tuple(free or ()), drop=tuple(drop or ()), widen=widen,
+                          observe=observe, out_path=out, run=run)
         write_text(out, text)
         typer.echo(f"wrote {out}")

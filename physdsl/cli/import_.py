@@ -18,11 +18,11 @@ def register(app: typer.Typer) -> None:
         force: bool = typer.Option(False, "--force", help="Overwrite an existing output file."),
     ) -> None:
         """Import a MuJoCo model; what physdsl cannot express is listed on stderr and atop the scene."""
+        from .. import api
         from ..io import refuse_overwrite, write_text
-        from ..mjcf import import_model
 
         refuse_overwrite(out, force)
-        text, notes, files = import_model(model, controls=controls, key=key)
+        text, notes, files = api.import_model(model, controls=controls, key=key)
         for name in files:
             refuse_overwrite(out.parent / name, force)
         for name, content in files.items():

@@ -44,35 +44,21 @@ def register(app: typer.Typer) -> None:
         Ctrl-C or SIGTERM stops within seconds (a second Ctrl-C at once), leaving a checkpoint
         in OUT that --resume continues exactly; the exit code is then 130 (SIGINT) or 143
         (SIGTERM)."""
-        from ..compile import Model
+        from .. import api
         from ..errors import UsageError
         from ..infer import get_backend
         from ..infer.backends.map import LaplaceError
-        from ..infer.init import start_values
         from ..infer.intervals import SHOWN
-        from ..syntax import load
 
         get_backend(backend)  # fail fast on an unknown name, before compiling
-        if fallback is not None and (fallback != "rmh" or backend != "map"):
-            raise UsageError(f"--fallback {fallback} with --backend {backend}",
-                             hint="--fallback rmh goes with --backend map: random-walk "
-                                  "Metropolis from the mode where the Laplace step fails")
         if intervals not in SHOWN:
             raise UsageError(f"unknown --intervals '{intervals}'", hint="robust or model")
-        model = Model(load(scene))
-        start = start_values(init, model.unknowns) if init else None  # errors before compiling
-        run = dict(backend=backend, chains=chains, warmup=warmup, samples=samples, seed=seed,
-                   target_accept=target_accept, dense_mass=dense_mass, outdir=out, force=force,
-                   resume=resume, intervals=intervals, **({"init": start} if start else {}))
+        model = api.compile(scene)
         try:
-            if fallback:  # refine's fallback; its starts read the start values as a setting
-                from ..diagnose.rank import fit_with_fallback, start_setting
-
-                run.pop("init", None)
-                run["start"] = start_setting(start or {})
-                idata = fit_with_fallback(model, **run)
-            else:
-                idata = model.infer(**run)
+            idata = api.infer(model, backend, fallback=fallback, init=init, chains=chains,
+                              warmup=warmup, samples=samples, seed=seed,
+                              target_accept=target_accept, dense_mass=dense_mass, outdir=out,
+                              force=force, resume=resume, intervals=intervals)
         except LaplaceError as err:
             if getattr(err, "idata", None) is not None:
                 _report(model, err.idata, backend)

@@ -16,13 +16,14 @@ def lint_files(files: list[Path], quiet: bool = False) -> int:
     from rich.console import Console
     from rich.table import Table
 
-    from ..syntax import load, unknowns_rows
+    from .. import api
+    from ..syntax import unknowns_rows
 
     out = Console(file=sys.stdout, width=200, highlight=False, soft_wrap=True)
     code = 0
     for f in files:
         try:
-            scene = load(f)
+            scene = api.load(f)
         except PhysError as err:
             print(err.render(), file=sys.stderr)
             code = max(code, 2)

@@ -29,14 +29,14 @@ def register(app: typer.Typer) -> None:
         force: bool = typer.Option(False, "--force", help="Overwrite a non-empty output folder."),
     ) -> None:
         """The diagnosis loop: adds, swaps and drops effects until none improves the evidence."""
-        from ..diagnose.refine import refine as run
+        from .. import api
         from ..infer import get_backend
 
-        get_backend(backend)
-        rounds = run(scene, out, max_rounds=max_rounds, backend=backend, chains=chains,
-                     warmup=warmup, samples=samples, seed=seed, force=force,
-                     confirm_top=confirm, revise=tuple(revise), echo=typer.echo,
-                     progress=True)  # each round's fit: its stages on stderr
+        get_backend(backend)  # an unknown backend before anything runs
+        rounds = api.refine(scene, out, max_rounds=max_rounds, backend=backend, chains=chains,
+                            warmup=warmup, samples=samples, seed=seed, force=force,
+                            confirm_top=confirm, revise=tuple(revise), echo=typer.echo,
+                            progress=True)  # each round's fit: its stages on stderr
         typer.echo("\nround  action   effect                             RMS (noise units)   ELPD")
         for r in rounds:
             add = f"{r.added['effect']} on {r.added['target']}" if r.added else "-"

@@ -21,8 +21,8 @@ def register(app: typer.Typer) -> None:
         no_simulate: bool = typer.Option(False, "--no-simulate", help="Write scenes and parameters only."),
     ) -> None:
         """Draw N scenes: concrete .phys files, simulated trajectories, a parameter table."""
-        from ..sample import sample
+        from .. import api
 
-        result = sample(program, n, seed, out, force=force, simulate=not no_simulate)
+        result = api.sample(program, n, seed, out, force=force, simulate=not no_simulate)
         typer.echo(result.summary())
         typer.echo(f"wrote {len(result.scenes)} scenes and parameters.csv to {result.outdir}")

@@ -299,22 +299,22 @@ FIT_DRAWS = 64  # Laplace draws per chain: enough for PSIS-LOO and 90% intervals
 
 
 def fit_with_fallback(model, backend: str, **settings):
-    """``model.infer(backend=...)``; for ``map``, the modes are found once and where MAP's
+    """``infer(model, backend=...)``; for ``map``, the modes are found once and where MAP's
     Laplace step fails there (a log density with a kink at the mode, e.g. a contact that
     switches on, or a flat direction: LaplaceError, or draws wider than the prior, see
     ``wider_than_prior``) the posterior is sampled by random-walk Metropolis started at those
     same modes, which needs no Hessian and no gradient; ``idata.attrs["fit_note"]`` says so."""
     from ..infer.backends.map import LaplaceError
     from ..infer.base import Settings
-    from ..infer.run import starts
+    from ..infer.run import infer, starts
     from .workflow import wider_than_prior
 
     if backend != "map":
-        return model.infer(backend=backend, **settings)
+        return infer(model, backend=backend, **settings)
     run = {k: v for k, v in settings.items() if k in Settings.__dataclass_fields__}
     modes = np.asarray(starts(model, Settings(**run), max(run.get("warmup", 50), 50))[1])
     try:
-        idata = model.infer(backend="map", positions=modes, **settings)
+        idata = infer(model, backend="map", positions=modes, **settings)
         wide = wider_than_prior(model, idata)
         if not wide:
             return idata
@@ -325,7 +325,7 @@ def fit_with_fallback(model, backend: str, **settings):
     settings = {**settings, "warmup": min(settings.get("warmup", 200), 200)}
     if settings.get("outdir") is not None:  # the sample replaces what the MAP attempt wrote
         settings.update(force=True, resume=False)
-    idata = model.infer(backend="rmh", positions=modes, **settings)
+    idata = infer(model, backend="rmh", positions=modes, **settings)
     idata.attrs["fit_note"] = f"{why}; posterior sampled by random-walk Metropolis from the modes"
     return idata
 

@@ -40,7 +40,7 @@ def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", cha
     from .candidates import physics_candidates, sensor_candidates
     from .rank import diagnose, fit_with_fallback, loo_reliability, start_setting, with_effect
     from .stepwise import judge, parse, reexamine
-    from .workflow import point_estimate
+    from .workflow import check_model, point_estimate
 
     scene_path = Path(scene_path)
     _check_revisable(load(scene_path), [parse(k) for k in revise])
@@ -62,7 +62,7 @@ def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", cha
                                   start=start_setting(start))
         if "fit_note" in idata.attrs:
             echo(f"round {k}: {idata.attrs['fit_note']}")
-        report = model.check(idata, outdir=rdir / "check")
+        report = check_model(model, idata, outdir=rdir / "check")
         now = judge(model, idata, report)
         z = "n/a" if now.log_z is None else f"{now.log_z:.1f}"
         echo(f"round {k}: residual RMS {report.rms_sigma:.2f}σ, ELPD {now.elpd:.1f}, log Z {z}")

@@ -234,25 +234,3 @@ def observed_frames(obs) -> tuple[np.ndarray, np.ndarray]:
         _FRAME_CACHE[key] = frames
     idx = frame_subset(len(key))
     return np.asarray(obs.times)[idx], _FRAME_CACHE[key]
-
-
-def scene_image_log_likelihood(model, obs, rollout, values, levels: int = 3, softness=0.5):
-    """Log-likelihood of an image Observation of ``model.scene`` given a rollout: the scene's
-    camera ``obs.target`` renders the bodies at the (subsampled) frame times, compared with
-    the frames by ``image_log_likelihood`` under the observation's noise model."""
-    from ..errors import DataError
-    from ..expr import evaluate
-    from ..render.scene import render_frames
-
-    times, frames = observed_frames(obs)
-    cam = next((c for c in model.scene.cameras if c.name == obs.target), None)
-    if cam is not None and frames.shape[1:3] != (cam.size[1], cam.size[0]):
-        raise DataError(f"frames are {frames.shape[2]}x{frames.shape[1]} pixels but camera "
-                        f"'{cam.name}' is {cam.size[0]}x{cam.size[1]}", obs.frames[0],
-                        hint="set the camera's size to the frames' size")
-    images = render_frames(model.scene, model.simulator, rollout, values, obs.target, times,
-                           softness)
-    sigma = evaluate(obs.noise.scale, values)
-    df = evaluate(obs.noise.df, values) if obs.noise.df is not None else 4.0
-    return image_log_likelihood(images, jnp.asarray(frames), sigma, levels=levels,
-                                kind=obs.noise.kind, df=df)

@@ -4,11 +4,11 @@
 """
 from .camera import pixel_rays, project, unproject
 from .render import render, to_gray
-from .types import (BOX, CAPSULE, CYLINDER, KIND_CODES, PLANE, SPHERE, Camera, Light, Objects,
-                    make_camera, make_light, make_objects)
+from .types import (BOX, CAPSULE, CYLINDER, KIND_CODES, PLANE, SPHERE, Light, Objects,
+                    RenderCamera, make_camera, make_light, make_objects)
 
 __all__ = [
-    "BOX", "CAPSULE", "CYLINDER", "KIND_CODES", "PLANE", "SPHERE", "Camera", "Light", "Objects",
-    "make_camera", "make_light", "make_objects", "pixel_rays", "project", "render", "to_gray",
+    "BOX", "CAPSULE", "CYLINDER", "KIND_CODES", "PLANE", "SPHERE", "Light", "Objects",
+    "RenderCamera", "make_camera", "make_light", "make_objects", "pixel_rays", "project", "render", "to_gray",
     "unproject",
 ]

@@ -7,10 +7,10 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from .types import Camera
+from .types import RenderCamera
 
 
-def camera_frame(camera: Camera):
+def camera_frame(camera: RenderCamera):
     """Orthonormal (right, up, forward) world vectors of the camera (MuJoCo's look-at frame)."""
     fwd = camera.look_at - camera.position
     fwd = fwd / jnp.linalg.norm(fwd)
@@ -20,12 +20,12 @@ def camera_frame(camera: Camera):
     return right, up, fwd
 
 
-def focal_pixels(camera: Camera):
+def focal_pixels(camera: RenderCamera):
     """Focal length in pixels from the vertical field of view."""
     return 0.5 * camera.height / jnp.tan(0.5 * camera.fovy)
 
 
-def pixel_rays(camera: Camera):
+def pixel_rays(camera: RenderCamera):
     """Unit ray directions (H, W, 3) through pixel centres, and the camera origin (3,)."""
     right, up, fwd = camera_frame(camera)
     f = focal_pixels(camera)
@@ -37,7 +37,7 @@ def pixel_rays(camera: Camera):
     return d / jnp.linalg.norm(d, axis=-1, keepdims=True), camera.position
 
 
-def project(camera: Camera, points):
+def project(camera: RenderCamera, points):
     """Pixel coordinates (..., 2) as (u, v) of world points (..., 3), and their depth (...,)."""
     right, up, fwd = camera_frame(camera)
     rel = jnp.asarray(points) - camera.position
@@ -48,7 +48,7 @@ def project(camera: Camera, points):
     return jnp.stack([u, v], axis=-1), z
 
 
-def unproject(camera: Camera, uv, depth):
+def unproject(camera: RenderCamera, uv, depth):
     """World points (..., 3) at camera depth ``depth`` (along the optical axis) seen at pixel ``uv``."""
     right, up, fwd = camera_frame(camera)
     uv = jnp.asarray(uv)
@@ -59,6 +59,6 @@ def unproject(camera: Camera, uv, depth):
     return camera.position + depth * (fwd + x[..., None] * right + y[..., None] * up)
 
 
-def pixel_size(camera: Camera):
+def pixel_size(camera: RenderCamera):
     """Size of one pixel at unit distance (radians per pixel near the centre)."""
     return 2.0 * jnp.tan(0.5 * camera.fovy) / camera.height

@@ -1,5 +1,5 @@
 """Read a camera description (``camera.json`` of the corpus, MuJoCo-rendered frames) into
-renderer inputs: Camera, Light, background and ground colours, per-object colours."""
+renderer inputs: RenderCamera, Light, background and ground colours, per-object colours."""
 from __future__ import annotations
 
 import json
@@ -9,11 +9,11 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import DataError
-from .types import Camera, Light, make_camera, make_light
+from .types import RenderCamera, Light, make_camera, make_light
 
 
 class CameraSpec(NamedTuple):
-    camera: Camera
+    camera: RenderCamera
     light: Light
     background: np.ndarray  # (3,)
     ground: np.ndarray | None  # (3,) colour of the ground plane, if the file names one

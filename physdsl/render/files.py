@@ -2,12 +2,15 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import NamedTuple
 
 import jax
 import numpy as np
 
-from ..errors import UsageError
 from .. import io
+from ..errors import UsageError
+from ..observe.image import load_frames
+from .scene import render_frames
 
 DEFAULT_FPS = 30.0
 
@@ -91,6 +94,7 @@ def frame_times(model, camera: str, fps: float | None) -> np.ndarray:
 
 
 def pick_camera(scene, name: str | None) -> str:
+    """The name of the scene's camera ``name`` (default: its first); a UsageError if none."""
     if not scene.cameras:
         raise UsageError(f"scene '{scene.name}' has no camera",
                          hint="add camera NAME { position ... look_at ... size ... }")
@@ -100,3 +104,56 @@ def pick_camera(scene, name: str | None) -> str:
     if name not in names:
         raise UsageError(f"no camera called '{name}'", hint="cameras: " + ", ".join(names))
     return name
+
+
+class Frames(NamedTuple):
+    """Rendered frames: the camera's name, the times (F,) and the images (F, H, W, 3)."""
+
+    camera: str
+    times: np.ndarray
+    images: np.ndarray
+
+
+def frame_rate(times) -> float:
+    """Frames per second of evenly spaced ``times`` (30 for a single frame)."""
+    return float(1.0 / np.median(np.diff(times))) if len(times) > 1 else DEFAULT_FPS
+
+
+def render_scene(model, values: dict, camera: str | None = None, fps: float | None = None
+                 ) -> Frames:
+    """The scene of ``model`` seen by ``camera`` over its frame times (``frame_times``), the
+    unknowns at ``values`` and those not given at their prior medians."""
+    cam = pick_camera(model.scene, camera)
+    values = {**prior_medians(model), **values}
+    times = frame_times(model, cam, fps)
+    images = np.asarray(render_frames(model.scene, model.simulator, model.simulate(values),
+                                      values, cam, times))
+    return Frames(cam, times, images)
+
+
+def posterior_images(model, post, camera: str | None, n: int, time: float | None
+                     ) -> tuple[list[np.ndarray], float]:
+    """(images, t): the camera's observed frame nearest ``t`` (if any) then ``n`` evenly spaced
+    draws of the posterior ``post`` (name -> (chain, draw, ...)) rendered at ``t`` (default:
+    the last observed frame, else 0)."""
+    cam = pick_camera(model.scene, camera)
+    missing = [u for u in model.unknown_names if u not in post]
+    if missing:
+        raise UsageError(f"the run has no draws of {', '.join(missing)}",
+                         hint="give the run of this scene")
+    obs = next((o for o in model.images if o.target == cam), None)
+    t = time if time is not None else (float(obs.times[-1]) if obs is not None else 0.0)
+    images = []
+    if obs is not None:
+        i = int(np.argmin(np.abs(np.asarray(obs.times) - t)))
+        t = float(obs.times[i])
+        images.append(load_frames([obs.frames[i]], times=[t])[1][0])
+    flat = {u: np.asarray(post[u]).reshape((-1,) + np.asarray(post[u]).shape[2:])
+            for u in model.unknown_names}
+    total = next(iter(flat.values())).shape[0] if flat else 1
+    for k in np.linspace(0, total - 1, min(n, total)).round().astype(int):
+        values = {u: v[k] for u, v in flat.items()}
+        images.append(np.asarray(render_frames(model.scene, model.simulator,
+                                               model.simulate(values), values, cam,
+                                               np.array([t])))[0])
+    return images, t

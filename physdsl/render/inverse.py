@@ -4,7 +4,7 @@ The unknown object is a categorical shape (sphere, cylinder, box) and a continuo
 position (3, m), orientation as a rotation vector (3, rad), log half-extents (3, shared by the
 shapes: see ``shape_size``), colour logits (3), log material ambient and
 diffuse factors (2), and the light direction's tilt from its nominal value (2, rad). The
-prior is independent Normal in these coordinates (``Prior``) and uniform over shapes.
+prior is independent Normal in these coordinates (``ShapePrior``) and uniform over shapes.
 
 Sampling is Metropolis-within-Gibbs: a step for the continuous block given the shape, then a
 Metropolis move of the shape to another kind drawn uniformly, keeping the continuous values.
@@ -31,7 +31,7 @@ import optax
 
 from ..observe.image import image_log_likelihood
 from .render import render
-from .types import BOX, CYLINDER, KIND_NAMES, SPHERE, Camera, Light, Objects, make_objects
+from .types import BOX, CYLINDER, KIND_NAMES, SPHERE, RenderCamera, Light, Objects, make_objects
 
 SHAPES = (SPHERE, CYLINDER, BOX)  # categorical index -> kind code
 DIM = 16
@@ -43,20 +43,20 @@ class Context(NamedTuple):
     """What is known about the image: camera, background, the nominal light, and fixed
     objects (e.g. the ground plane) drawn with the unknown one."""
 
-    camera: Camera
+    camera: RenderCamera
     light: Light
     background: jax.Array  # (3,)
     fixed: Objects | None = None
 
 
-class Prior(NamedTuple):
+class ShapePrior(NamedTuple):
     """Independent Normal prior of the continuous block: ``mean`` and ``sd`` (DIM,)."""
 
     mean: jax.Array
     sd: jax.Array
 
 
-def default_prior(center, center_sd=0.1, size=0.05, size_sd=0.7) -> Prior:
+def default_prior(center, center_sd=0.1, size=0.05, size_sd=0.7) -> ShapePrior:
     """Position near ``center`` (m), half-sizes around ``size`` (m, log-normal), any colour,
     material factors near 1, light direction within ~0.2 rad of nominal."""
     mean = np.zeros(DIM)
@@ -67,7 +67,7 @@ def default_prior(center, center_sd=0.1, size=0.05, size_sd=0.7) -> Prior:
     sd[_COLOR] = 2.0
     sd[_MAT] = 0.3
     sd[_LIGHT] = 0.2
-    return Prior(jnp.asarray(mean), jnp.asarray(sd))
+    return ShapePrior(jnp.asarray(mean), jnp.asarray(sd))
 
 
 # a random-walk step per coordinate before adaptation (m, rad, log, logit, log, rad)
@@ -121,7 +121,7 @@ def render_theta(theta, shape, context: Context, softness=0.5):
     return render(obj, light, context.camera, context.background, softness)
 
 
-def log_posterior(theta, shape, target, context: Context, prior: Prior, sigma=0.05,
+def log_posterior(theta, shape, target, context: Context, prior: ShapePrior, sigma=0.05,
                   levels: int = 3):
     """Log prior + image log-likelihood (uniform prior over shapes)."""
     image = render_theta(theta, shape, context)
@@ -145,7 +145,7 @@ class Draws(NamedTuple):
         return decode(jnp.asarray(self.theta[chain, i]), int(self.shape[chain, i]))[0]
 
 
-def sample(target, context: Context, prior: Prior, key, chains: int = 3, warmup: int = 400,
+def sample(target, context: Context, prior: ShapePrior, key, chains: int = 3, warmup: int = 400,
            samples: int = 400, sigma: float = 0.05, init_steps: int = 150, levels: int = 3,
            continuous: str = "rw", leapfrog: int = 8) -> Draws:
     """Posterior draws of the unknown object behind ``target`` (H, W, 3 in [0, 1]).
@@ -223,7 +223,7 @@ def _hmc_move(key, logdensity, theta, logp, step, scale, leapfrog: int):
 _HMC_KERNEL = blackjax.mcmc.hmc.build_kernel()
 
 
-def _initial(logdensity, prior: Prior, key, chains: int, steps: int):
+def _initial(logdensity, prior: ShapePrior, key, chains: int, steps: int):
     """Each chain's start (theta, shape): a jittered prior mean fitted by ``steps`` Adam steps
     for every shape; the chain starts at the shape whose fit has the highest log posterior."""
     theta = prior.mean + 0.1 * prior.sd * jax.random.normal(key, (chains, DIM))
@@ -280,5 +280,5 @@ def grid(images, pad: int = 2, columns: int | None = None) -> np.ndarray:
     return out
 
 
-__all__ = ["SHAPES", "Context", "Draws", "Prior", "decode", "default_prior", "grid",
+__all__ = ["SHAPES", "Context", "Draws", "ShapePrior", "decode", "default_prior", "grid",
            "log_posterior", "make_objects", "render_grid", "render_theta", "sample"]

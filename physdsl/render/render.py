@@ -14,7 +14,7 @@ import jax.numpy as jnp
 
 from .camera import pixel_rays, pixel_size
 from .raycast import cast, cast_from_points
-from .types import PLANE, Camera, Light, Objects
+from .types import PLANE, RenderCamera, Light, Objects
 
 DEFAULT_PLANE_EXTENT = 30.0  # m, half-size of planes (MuJoCo's corpus ground is 30 x 30)
 
@@ -32,7 +32,7 @@ def _composite(alpha, depth, color, background):
 
 
 @partial(jax.jit, static_argnames=("shadows", "kinds"))
-def render(objects: Objects, light: Light, camera: Camera, background, softness=0.5,
+def render(objects: Objects, light: Light, camera: RenderCamera, background, softness=0.5,
            shadows: bool = False, plane_extent=DEFAULT_PLANE_EXTENT, kinds=None):
     """Image (H, W, 3) in [0, 1] of ``objects`` seen by ``camera``; row 0 is the top.
 

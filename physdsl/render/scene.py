@@ -17,7 +17,8 @@ from ..errors import ModelError
 from ..expr import evaluate
 from ..observe import trajectory
 from ..scene import Body, Marker, Scene
-from .types import KIND_CODES, Camera, Light, Objects, make_light
+from .render import render
+from .types import KIND_CODES, RenderCamera, Light, Objects, make_light
 
 DEFAULT_COLOR = (0.5, 0.5, 0.5)  # MuJoCo's default geom colour
 DEFAULT_BACKGROUND = (0.0, 0.0, 0.0)
@@ -133,12 +134,12 @@ def _marker_dots(scene: Scene, simulator, rollout, values, times) -> Objects | N
     )
 
 
-def scene_camera(scene: Scene, name: str, values) -> tuple[Camera, jnp.ndarray]:
+def scene_camera(scene: Scene, name: str, values) -> tuple[RenderCamera, jnp.ndarray]:
     """The camera called ``name`` and its background colour (3,)."""
     cam = next((c for c in scene.cameras if c.name == name), None)
     if cam is None:
         raise ModelError(f"no camera called '{name}' in scene '{scene.name}'")
-    camera = Camera(jnp.asarray(evaluate(cam.position, values), dtype=float),
+    camera = RenderCamera(jnp.asarray(evaluate(cam.position, values), dtype=float),
                     jnp.asarray(evaluate(cam.look_at, values), dtype=float),
                     jnp.asarray(evaluate(cam.up, values), dtype=float),
                     jnp.asarray(evaluate(cam.fov, values), dtype=float),
@@ -158,8 +159,6 @@ def scene_light(scene: Scene, values) -> Light:
 def render_frames(scene: Scene, simulator, rollout, values, camera: str, times,
                   softness: float = 0.5):
     """Images (F, H, W, 3) of the scene seen by ``camera`` at ``times`` (static)."""
-    from .render import render
-
     objects = scene_objects(scene, simulator, rollout, values, times)
     cam, background = scene_camera(scene, camera, values)
     light = scene_light(scene, values)

@@ -1,7 +1,8 @@
 """Inputs of the renderer: objects, light and camera as pytrees of arrays.
 
 Objects and Light are NamedTuples (every field a leaf, so they vmap over frames and draws);
-Camera is a dataclass pytree whose ``width``/``height`` are static (they fix the image shape).
+RenderCamera (named apart from the scene's ``scene.Camera`` declaration) is a dataclass pytree
+whose ``width``/``height`` are static (they fix the image shape).
 """
 from __future__ import annotations
 
@@ -40,7 +41,7 @@ class Light(NamedTuple):
 
 
 @dataclass(frozen=True)
-class Camera:
+class RenderCamera:
     """Pinhole camera in MuJoCo's convention: at ``position`` looking at ``look_at``;
     ``fovy`` is the vertical field of view in radians; principal point at the image centre."""
 
@@ -53,7 +54,8 @@ class Camera:
 
 
 jax.tree_util.register_dataclass(
-    Camera, data_fields=["position", "look_at", "up", "fovy"], meta_fields=["width", "height"])
+    RenderCamera, data_fields=["position", "look_at", "up", "fovy"],
+    meta_fields=["width", "height"])
 
 
 def make_objects(kind, pos, size, color, quat=None, ambient=None, diffuse=None, visible=None
@@ -84,8 +86,9 @@ def make_light(direction=(0.0, 0.0, -1.0), ambient=0.35, diffuse=0.65) -> Light:
     return Light(jnp.asarray(direction, dtype=float), amb, dif)
 
 
-def make_camera(position, look_at, up=(0.0, 0.0, 1.0), fovy=0.7, width=64, height=64) -> Camera:
-    """A Camera from plain numbers (fovy in radians)."""
-    return Camera(jnp.asarray(position, dtype=float), jnp.asarray(look_at, dtype=float),
+def make_camera(position, look_at, up=(0.0, 0.0, 1.0), fovy=0.7, width=64, height=64
+                ) -> RenderCamera:
+    """A RenderCamera from plain numbers (fovy in radians)."""
+    return RenderCamera(jnp.asarray(position, dtype=float), jnp.asarray(look_at, dtype=float),
                   jnp.asarray(up, dtype=float), jnp.asarray(fovy, dtype=float),
                   int(width), int(height))

@@ -8,6 +8,8 @@ true strength inside its 90% interval. Fast cases: quadratic vs linear drag on a
 """
 from __future__ import annotations
 
+import physdsl
+
 import json
 
 import numpy as np
@@ -288,12 +290,12 @@ def test_infer_starts_at_given_positions(quadratic):
     model = quadratic.model
     dim = model_problem(model).dim
     far = np.tile(np.linspace(5.0, 6.0, dim), (2, 1))
-    idata = model.infer(backend="rmh", positions=far, chains=2, warmup=1, samples=2,
+    idata = physdsl.infer(model, backend="rmh", positions=far, chains=2, warmup=1, samples=2,
                         progress=False)
     v = idata.posterior["ball.velocity"].values[:, 0]
     assert np.all(v > 4.0)  # the prior is normal((3, 0, 12), 2): (x, y) ~ 5-6 only from the start
     with pytest.raises(UsageError, match="start positions"):
-        model.infer(backend="rmh", positions=far[:1], chains=2, warmup=1, samples=1,
+        physdsl.infer(model, backend="rmh", positions=far[:1], chains=2, warmup=1, samples=1,
                     progress=False)
 
 

@@ -1,6 +1,8 @@
 """Fitting an exported program again on the original data agrees with the first fit (slow)."""
 from __future__ import annotations
 
+import physdsl
+
 from pathlib import Path
 
 import numpy as np
@@ -19,11 +21,11 @@ TOSS = DATA / "toss.phys"
 def test_refit_of_the_exported_program_is_consistent(tmp_path):
     settings = dict(chains=2, warmup=150, samples=200, seed=1, progress=False, max_tree_depth=5,
                     init_steps=100)
-    first = compile_scene(syntax.load(TOSS)).infer(**settings)
+    first = physdsl.infer(compile_scene(syntax.load(TOSS)), **settings)
     proto = tmp_path / "proto.phys"
     proto.write_text(export(TOSS, first, out_path=proto))
     scene = syntax.load(proto)
-    second = compile_scene(scene).infer(**settings)
+    second = physdsl.infer(compile_scene(scene), **settings)
     draws = {u.name: np.asarray(second.posterior[u.name].values).reshape(-1, *u.shape)
              for u in scene.unknowns}
     module = syntax.parse(proto.read_text(), str(proto))

@@ -8,6 +8,8 @@ engine falls back to semi-implicit Euler, whose O(dt) drift biases the launch ve
 """
 from __future__ import annotations
 
+import physdsl
+
 import json
 import re
 import shutil
@@ -36,7 +38,7 @@ def test_thrown_ball_recovers_mujoco_truth(tmp_path):
     (tmp_path / "scene.phys").write_text(text)
     shutil.copy(CASE / "trajectory.csv", tmp_path / "trajectory.csv")
     model = compile_phys(tmp_path / "scene.phys")
-    idata = model.infer(backend="map", chains=2, warmup=200, samples=1000, seed=0, progress=False)
+    idata = physdsl.infer(model, backend="map", chains=2, warmup=200, samples=1000, seed=0, progress=False)
     # Seven components: each inside its own 90% interval would fail half the time by chance
     # alone. Measured: z = 0.5, -1.0, 1.7, -1.1, 0.3, -1.3, -0.7 and a joint Mahalanobis
     # distance^2 of 15.4 (p = 0.03 for 7 dof: chance, or a small difference between the

@@ -3,6 +3,8 @@ the same scene with other data (other values and times, same count) or another `
 cut-off reuses every compiled function (nothing is traced again) and still fits its own data."""
 from __future__ import annotations
 
+import physdsl
+
 import jax
 import numpy as np
 
@@ -24,7 +26,7 @@ def _compiled_sizes(model) -> dict:
 def test_other_data_and_cutoff_reuse_every_compiled_function(projectile_model, tmp_path):
     from physdsl.compile import compile as compile_phys
 
-    full = projectile_model.infer(**SETTINGS)  # compiles what the module has not yet
+    full = physdsl.infer(projectile_model, **SETTINGS)  # compiles what the module has not yet
     sizes = _compiled_sizes(projectile_model)
     tuple_keys = [k[0] for k in sizes if isinstance(k, tuple)]
     assert "gauss-newton" in sizes and "posterior-pass" in tuple_keys and "block" in tuple_keys
@@ -36,8 +38,8 @@ def test_other_data_and_cutoff_reuse_every_compiled_function(projectile_model, t
     assert other.compiled is projectile_model.compiled and cut.compiled is projectile_model.compiled
     # (simulating the other data above ran the rollout on its own, eagerly: counted from here)
     traces = projectile_model.simulator.trace_count
-    other_fit = other.infer(**SETTINGS)
-    cut_fit = cut.infer(**SETTINGS)
+    other_fit = physdsl.infer(other, **SETTINGS)
+    cut_fit = physdsl.infer(cut, **SETTINGS)
 
     assert projectile_model.simulator.trace_count == traces, "the rollout was traced again"
     assert _compiled_sizes(projectile_model) == sizes, "a compiled function was compiled again"
@@ -78,7 +80,7 @@ def test_a_warmup_over_several_blocks_runs_the_one_compiled_block(projectile_mod
     once compiled the NUTS block a second and a third time."""
     import logging
 
-    projectile_model.infer(**SETTINGS)  # compiled now or earlier in this module
+    physdsl.infer(projectile_model, **SETTINGS)  # compiled now or earlier in this module
     compiled = []
 
     class Log(logging.Handler):
@@ -89,7 +91,7 @@ def test_a_warmup_over_several_blocks_runs_the_one_compiled_block(projectile_mod
     logging.getLogger("jax").addHandler(log)
     try:
         with jax.log_compiles():
-            projectile_model.infer(**{**SETTINGS, "warmup": 300})  # three warmup blocks
+            physdsl.infer(projectile_model, **{**SETTINGS, "warmup": 300})  # three warmup blocks
     finally:
         logging.getLogger("jax").removeHandler(log)
     assert not [m for m in compiled if m.startswith("Compiling jit(chain)")]

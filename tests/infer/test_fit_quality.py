@@ -3,6 +3,8 @@ noise units overall and per observable, worst window, verdict), and a warning in
 the fit is far from the data; the posterior pass runs in chunks with the same results."""
 from __future__ import annotations
 
+import physdsl
+
 import json
 
 import numpy as np
@@ -11,7 +13,7 @@ import pytest
 
 @pytest.fixture(scope="module")
 def good(projectile_model):
-    return projectile_model.infer(backend="map", chains=2, warmup=100, samples=20, seed=1,
+    return physdsl.infer(projectile_model, backend="map", chains=2, warmup=100, samples=20, seed=1,
                                   progress=False)
 
 

@@ -3,6 +3,8 @@ covariance covers the truth where the posterior's white-noise intervals do not, 
 intervals alone where the residuals are white at the stated noise."""
 from __future__ import annotations
 
+import physdsl
+
 import numpy as np
 import pytest
 
@@ -131,7 +133,7 @@ def test_run_keeps_both_posteriors_and_summary_shows_the_chosen(projectile_model
     from physdsl.infer.intervals import GROUP
 
     run = dict(backend="map", chains=2, samples=150, seed=1, progress=False)
-    idata = projectile_model.infer(outdir=tmp_path / "robust", **run)
+    idata = physdsl.infer(projectile_model, outdir=tmp_path / "robust", **run)
     saved = posterior_data.read(tmp_path / "robust" / "posterior.nc")
     assert GROUP in posterior_data.group_names(saved) and saved.attrs["intervals"] == "robust"
     with open(tmp_path / "robust" / "summary.csv") as f:
@@ -147,7 +149,7 @@ def test_run_keeps_both_posteriors_and_summary_shows_the_chosen(projectile_model
         assert np.all(interval_contains(getattr(idata, GROUP)[name].values,
                                         PROJECTILE_TRUTH[name]))
 
-    plain = projectile_model.infer(outdir=tmp_path / "model", intervals="model", **run)
+    plain = physdsl.infer(projectile_model, outdir=tmp_path / "model", intervals="model", **run)
     assert plain.attrs["intervals"] == "model" and GROUP in posterior_data.group_names(plain)
     with open(tmp_path / "model" / "summary.csv") as f:
         rows = {r["name"]: r for r in csv.DictReader(f)}
@@ -166,7 +168,7 @@ def test_noise_three_times_the_stated_widens_three_times(tmp_path, projectile_mo
 
     scene = simulated_scene(tmp_path / "noisy", projectile_text(0.01), PROJECTILE_TRUTH,
                             PROJECTILE_TIMES, 0.03, seed=5)
-    idata = compile_phys(scene).infer(backend="map", chains=2, samples=300, seed=2,
+    idata = physdsl.infer(compile_phys(scene), backend="map", chains=2, samples=300, seed=2,
                                       progress=False)
     ratio = _widths(getattr(idata, GROUP), "ball.velocity") / _widths(idata.posterior,
                                                                       "ball.velocity")

@@ -1,4 +1,5 @@
 """Multistart: starts from the data, the prior's centre and draws; modes grouped into basins."""
+import physdsl
 import jax
 import numpy as np
 import pytest
@@ -84,7 +85,7 @@ def test_a_map_run_prints_and_saves_its_basins(throw, tmp_path, capsys):
     import json
 
     problem, _ = throw
-    idata = problem.model.infer(backend="map", chains=2, warmup=50, samples=10,
+    idata = physdsl.infer(problem.model, backend="map", chains=2, warmup=50, samples=10,
                                 outdir=tmp_path / "run", progress=True)
     run = json.loads((tmp_path / "run" / "run.json").read_text())
     assert run["basins"] == json.loads(idata.attrs["basins"])

@@ -6,6 +6,8 @@ and samplers meet the edge while they find the posterior (a few posterior sds fr
 """
 from __future__ import annotations
 
+import physdsl
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -69,7 +71,7 @@ def test_initial_points_avoid_the_nan_region(model):
 @pytest.mark.parametrize("backend", ["rmh", pytest.param("nuts", marks=pytest.mark.slow)])
 def test_sampler_rejects_nan_proposals_and_recovers(model, backend):
     budget = {"rmh": dict(warmup=2000, samples=2000), "nuts": dict(warmup=200, samples=200)}
-    idata = model.infer(backend=backend, chains=2, seed=3, progress=False, **budget[backend])
+    idata = physdsl.infer(model, backend=backend, chains=2, seed=3, progress=False, **budget[backend])
     b2 = idata.posterior["b2"].values
     assert np.all(np.isfinite(b2)) and b2.min() >= 0.0
     # These data (seed 8) put the truth of velocity[1] 1.9 posterior sds from the posterior

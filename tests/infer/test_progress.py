@@ -2,6 +2,8 @@
 calls are cut by measured time (``blocks.Pacer``), and the draws do not depend on the cut."""
 from __future__ import annotations
 
+import physdsl
+
 from contextlib import contextmanager
 
 import jax
@@ -78,7 +80,7 @@ def test_infer_advances_warmup_per_block(projectile_model, monkeypatch):
                 yield s
 
     monkeypatch.setattr(run_module, "Stages", Recording)
-    projectile_model.infer(backend="rmh", chains=2, warmup=250, samples=150, block=100, seed=0)
+    physdsl.infer(projectile_model, backend="rmh", chains=2, warmup=250, samples=150, block=100, seed=0)
     assert sum(advances["warmup"]) == 250 and max(advances["warmup"]) <= 100
     assert sum(advances["sampling"]) == 150 and max(advances["sampling"]) <= 100
     assert sum(advances["predictions"]) == 2 * 150

@@ -6,6 +6,8 @@ release angle and joint damping (a joint scene with two observations).
 """
 from __future__ import annotations
 
+import physdsl
+
 import numpy as np
 import pytest
 
@@ -49,7 +51,7 @@ def runs(projectile_model):
 
     def get(backend):
         if backend not in done:
-            done[backend] = projectile_model.infer(backend=backend, seed=1, progress=False,
+            done[backend] = physdsl.infer(projectile_model, backend=backend, seed=1, progress=False,
                                                    **BACKENDS[backend][0])
         return done[backend]
     return get
@@ -118,7 +120,7 @@ def test_pendulum_recovery(tmp_path_factory, backend):
     budget = dict(chains=4, warmup=400, samples=1000)  # r-hat scatters ~0.01 at 400 (1.0112 seen)
     if backend == "rmh":
         budget = dict(chains=4, warmup=10000, samples=5000)  # r-hat 1.15 at 3000 + 3000 (measured)
-    idata = model.infer(backend=backend, seed=2, progress=False, **budget)
+    idata = physdsl.infer(model, backend=backend, seed=2, progress=False, **budget)
     # On this one dataset the posterior of L is 0.55077 +- 0.00047 for nuts, numpyro-nuts and
     # map alike (measured): the truth 0.55 sits at z = -1.65, on the 90% interval's edge, so a
     # 90% check passes or fails by Monte Carlo error. Calibration over many datasets is
@@ -133,5 +135,5 @@ def test_projectile_recovery_large_budget(projectile_model, backend):
     settings = BACKENDS[backend][0]
     settings = {**settings, "chains": 4, "warmup": settings["warmup"] * 3,
                 "samples": settings["samples"] * 3}
-    idata = projectile_model.infer(backend=backend, seed=7, progress=False, **settings)
+    idata = physdsl.infer(projectile_model, backend=backend, seed=7, progress=False, **settings)
     check_recovery(projectile_model, idata, PROJECTILE_TRUTH, SLOW_RHAT[backend])

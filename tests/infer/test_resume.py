@@ -2,6 +2,8 @@
 uninterrupted run with the same seed; a checkpoint from other settings is refused."""
 from __future__ import annotations
 
+import physdsl
+
 import numpy as np
 import pytest
 
@@ -30,17 +32,17 @@ def _interrupt_on_block(monkeypatch, backend: str, block: int):
 
 
 def test_interrupt_and_resume_gives_the_same_draws(projectile_model, tmp_path, monkeypatch):
-    reference = projectile_model.infer(outdir=tmp_path / "reference", **SETTINGS)
+    reference = physdsl.infer(projectile_model, outdir=tmp_path / "reference", **SETTINGS)
 
     out = tmp_path / "interrupted"
     calls = _interrupt_on_block(monkeypatch, "nuts", 2)
     with pytest.raises(KeyboardInterrupt):
-        projectile_model.infer(outdir=out, **SETTINGS)
+        physdsl.infer(projectile_model, outdir=out, **SETTINGS)
     assert calls["n"] == 2
     assert (out / "checkpoint.pkl").exists() and not (out / "posterior.nc").exists()
     monkeypatch.undo()
 
-    resumed = projectile_model.infer(outdir=out, resume=True, **SETTINGS)
+    resumed = physdsl.infer(projectile_model, outdir=out, resume=True, **SETTINGS)
     assert (out / "posterior.nc").exists() and not (out / "checkpoint.pkl").exists()
     for name in projectile_model.unknown_names:
         np.testing.assert_array_equal(resumed.posterior[name].values, reference.posterior[name].values)
@@ -55,8 +57,8 @@ def test_resume_refuses_a_checkpoint_of_other_settings(projectile_model, tmp_pat
     out = tmp_path / "run"
     _interrupt_on_block(monkeypatch, "nuts", 1)
     with pytest.raises(KeyboardInterrupt):
-        projectile_model.infer(outdir=out, **SETTINGS)
+        physdsl.infer(projectile_model, outdir=out, **SETTINGS)
     monkeypatch.undo()
     with pytest.raises(UsageError, match="another scene, data or settings"):
-        projectile_model.infer(outdir=out, resume=True, **{**SETTINGS, "seed": 12})
+        physdsl.infer(projectile_model, outdir=out, resume=True, **{**SETTINGS, "seed": 12})
 

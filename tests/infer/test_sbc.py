@@ -10,6 +10,8 @@ once for all of them (the measurements are an argument of the compiled functions
 """
 from __future__ import annotations
 
+import physdsl
+
 import dataclasses
 
 import jax
@@ -62,7 +64,7 @@ def sbc_ranks(model, key, datasets: int) -> dict[str, np.ndarray]:
         noisy = pred + rng.normal(0.0, NOISE, pred.shape)
         scene = dataclasses.replace(model.scene, observations=(
             dataclasses.replace(obs, values=noisy, mask=np.ones_like(noisy, bool)),))
-        fit = Model(scene).infer(seed=i, **FIT)  # a new Model: same structure, its own data
+        fit = physdsl.infer(Model(scene), seed=i, **FIT)  # a new Model: same structure, its own data
         if i == 0:
             traces = model.simulator.trace_count
         for name in model.unknown_names:

@@ -3,6 +3,8 @@ checkpoint, and ``--resume`` continues to exactly the draws of an uninterrupted 
 the draws were cut into calls; a second signal acts at once."""
 from __future__ import annotations
 
+import physdsl
+
 import os
 import shutil
 import signal
@@ -38,7 +40,7 @@ def test_sigterm_while_sampling_resumes_to_the_same_draws(projectile_model, tmp_
     """SIGTERM arrives during the third sampling call: the run stops there (that call's draws
     are dropped), the checkpoint holds the calls before; resumed, the calls are cut anew by
     measured time, and the draws equal those of a run never stopped."""
-    reference = projectile_model.infer(outdir=tmp_path / "reference", **SETTINGS)
+    reference = physdsl.infer(projectile_model, outdir=tmp_path / "reference", **SETTINGS)
 
     algo = get_backend("rmh")
     real = algo.sample
@@ -54,12 +56,12 @@ def test_sigterm_while_sampling_resumes_to_the_same_draws(projectile_model, tmp_
     monkeypatch.setattr(algo, "sample", sample)
     out = tmp_path / "stopped"
     with pytest.raises(Interrupted) as ex:
-        projectile_model.infer(outdir=out, **SETTINGS)
+        physdsl.infer(projectile_model, outdir=out, **SETTINGS)
     assert ex.value.signum == signal.SIGTERM and "--resume" in ex.value.note
     assert (out / "checkpoint.pkl").exists() and not (out / "posterior.nc").exists()
     monkeypatch.undo()
 
-    resumed = projectile_model.infer(outdir=out, resume=True, **SETTINGS)
+    resumed = physdsl.infer(projectile_model, outdir=out, resume=True, **SETTINGS)
     assert not (out / "checkpoint.pkl").exists()
     for name in projectile_model.unknown_names:
         np.testing.assert_array_equal(resumed.posterior[name].values,

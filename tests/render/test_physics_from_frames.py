@@ -3,6 +3,7 @@
 The scene (data/pendulum_01/pendulum.phys) observes twelve 64x64 corpus frames over the
 first 1.65 s of the swing; the truth is L = 0.6 m, released from 40 deg.
 """
+import physdsl
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -44,7 +45,7 @@ def test_corpus_frames_prefer_the_true_length(pendulum):
 @pytest.mark.slow  # MAP through rollout and renderer: about a minute on 2 cores
 def test_pendulum_length_recovered_from_frames_alone(pendulum):
     assert not pendulum.observed  # nothing but the frames
-    post = pendulum.infer(backend="map", chains=1, samples=200, progress=False).posterior
+    post = physdsl.infer(pendulum, backend="map", chains=1, samples=200, progress=False).posterior
     length = 0.6 + 0.05 * float(post["z_L"].mean())
     angle = 40.0 + 10.0 * float(post["z_angle"].mean())
     # measured: L = 0.6012 m, 39.43 deg (the naive model has no hinge damping: over 1.65 s the

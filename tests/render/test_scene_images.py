@@ -1,4 +1,5 @@
 """Scenes to images (scene_objects, cameras, light) and images as measurements of a scene."""
+import physdsl
 import cv2
 import jax
 import jax.numpy as jnp
@@ -144,7 +145,7 @@ def test_frames_of_the_wrong_size_are_a_data_error(toss):
 def test_launch_recovered_from_frames_alone(toss):
     model = Model(_unknown(toss[0]))
     assert not model.observed  # nothing but the frames
-    post = model.infer(backend="map", chains=1, samples=200, progress=False).posterior
+    post = physdsl.infer(model, backend="map", chains=1, samples=200, progress=False).posterior
     h0, v0 = float(post["h0"].mean()), float(post["v0"].mean())
     # one pixel is 9 cm at the ball; sub-pixel fits from 6 frames of a 2-pixel ball
     assert abs(h0 - TRUTH["h0"]) < 0.01, h0
@@ -186,7 +187,7 @@ def test_frames_plus_a_partial_trajectory(toss):
     scene = load(text.replace("velocity: (1.5, 0, v0)", "velocity: (vx, 0, v0)"), folder)
     fit = Model(scene)
     assert len(fit.observed) == 1 and len(fit.images) == 1
-    post = fit.infer(backend="map", chains=1, samples=400, progress=False).posterior
+    post = physdsl.infer(fit, backend="map", chains=1, samples=400, progress=False).posterior
     mean = np.array([float(post[k].mean()) for k in ("h0", "vx", "v0")])
     sd = np.array([float(post[k].std()) for k in ("h0", "vx", "v0")])
     truth = np.array([TRUTH["h0"], 1.5, TRUTH["v0"]])
