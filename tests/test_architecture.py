@@ -18,7 +18,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "physdsl"
 FLOORS = (
     ("cli",),
     ("api", "batch"),
-    ("diagnose", "design", "export", "sample"),
+    ("diagnose", "design", "export", "sample", "control"),
     ("infer", "track"),
     ("compile", "mjcf"),
     ("syntax", "physics", "observe", "render"),
