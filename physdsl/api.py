@@ -20,14 +20,16 @@ from .compile import compile as _compile
 from .design.experiment import OBJECTIVES, Proposal, design, require_unknown
 from .diagnose.candidates import Candidate
 from .diagnose.edits import load_text, with_effect
-from .diagnose.rank import Diagnosis, fit_with_fallback, start_setting
+from .diagnose.diagnosis import Diagnosis
+from .diagnose.quality import fit_quality
 from .diagnose.rank import diagnose as _diagnose
 from .diagnose.refine import Round
 from .diagnose.refine import refine as _refine
 from .diagnose.workflow import check_model, point_estimate
 from .errors import PhysNameError, UsageError
 from .export import export as _export
-from .infer.init import start_values
+from .infer.fit import fit_with_fallback
+from .infer.init import start_setting, start_values
 from .infer.output import load_run
 from .infer.run import infer as _infer
 from .export.mjcf import export_mjcf as _export_mjcf
@@ -68,6 +70,7 @@ def infer(model: Model, backend: str = "nuts", *, fallback: str | None = None, i
                          hint="--fallback rmh goes with --backend map: random-walk "
                               "Metropolis from the mode where the Laplace step fails")
     start = start_values(init, model.unknowns) if init else None  # errors before compiling
+    settings = {"quality": fit_quality, **settings}  # run.json's fit_quality (with outdir)
     if fallback:  # refine's fallback; its starts read the start values as a setting
         return fit_with_fallback(model, backend, start=start_setting(start or {}), **settings)
     return _infer(model, backend, **settings, **({"init": start} if start else {}))
