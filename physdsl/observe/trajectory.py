@@ -16,14 +16,15 @@ import numpy as np
 from ..errors import DataError
 from ..scene import Observation
 
-# quantity -> (source, number of measured columns, residual axis names)
+# quantity -> (source, number of measured columns, residual axis names, the data's columns,
+# SI unit: a slider's joint quantities read rad as m); the language reads this table too
 QUANTITIES = {
-    "position": ("body_pos", 3, ("x", "y", "z")),
-    "velocity": ("body_vel", 3, ("vx", "vy", "vz")),
-    "angular_velocity": ("body_angvel", 3, ("wx", "wy", "wz")),
-    "orientation": ("body_quat", 4, ("rx", "ry", "rz")),
-    "angle": ("joint_pos", 1, ("angle",)),
-    "angular_rate": ("joint_vel", 1, ("rate",)),
+    "position": ("body_pos", 3, ("x", "y", "z"), ("x", "y", "z"), "m"),
+    "orientation": ("body_quat", 4, ("rx", "ry", "rz"), ("qw", "qx", "qy", "qz"), "1"),
+    "velocity": ("body_vel", 3, ("vx", "vy", "vz"), ("vx", "vy", "vz"), "m/s"),
+    "angular_velocity": ("body_angvel", 3, ("wx", "wy", "wz"), ("wx", "wy", "wz"), "rad/s"),
+    "angle": ("joint_pos", 1, ("angle",), ("angle",), "rad"),
+    "angular_rate": ("joint_vel", 1, ("rate",), ("rate",), "rad/s"),
 }
 
 
