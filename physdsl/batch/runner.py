@@ -122,6 +122,8 @@ def run_batch(command: str, patterns: Iterable[str], out: str | os.PathLike,
     pool = None
     try:
         if todo:
+            if executor == "local":  # no idle processes: at most one per job
+                workers = min(workers or os.cpu_count() or 1, len(todo))
             pool = executor if not isinstance(executor, str) else \
                 make_executor(executor, address, workers, retries)
             head["executor"] = pool.describe()
