@@ -9,11 +9,14 @@ other. The version is looked at once, here, at import time.
 """
 from __future__ import annotations
 
+import importlib.util
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Sequence
 
 import arviz as az
 import numpy as np
+import xarray as xr
 
 from .. import io
 
@@ -47,8 +50,6 @@ def add_group(idata, name: str, variables: dict, attrs: dict | None = None):
     ds = group(from_dict({"posterior": variables}), "posterior")
     ds.attrs.update(attrs or {})
     if MODERN:
-        import xarray as xr
-
         idata[name] = xr.DataTree(ds)
     else:
         idata.add_groups({name: ds})
@@ -56,11 +57,8 @@ def add_group(idata, name: str, variables: dict, attrs: dict | None = None):
 
 
 def _engine() -> str:
-    try:
-        import h5netcdf  # noqa: F401
-        return "h5netcdf"
-    except ImportError:
-        return "netcdf4"
+    """h5netcdf where it is installed, else netCDF4 (both read what the other wrote)."""
+    return "h5netcdf" if importlib.util.find_spec("h5netcdf") is not None else "netcdf4"
 
 
 def write(idata, path) -> Path:
@@ -74,11 +72,23 @@ def write(idata, path) -> Path:
 def read(path):
     """Read a posterior file written by ``write`` (under either arviz version) into memory."""
     if MODERN:
-        import xarray as xr
-
         with xr.open_datatree(str(path), engine=_engine()) as tree:
             return tree.load()
     return az.from_netcdf(str(path), engine=_engine())
+
+
+def posterior_draws(idata, names: Sequence[str], max_draws: int | None = None) -> dict[str, np.ndarray]:
+    """Draws of the named posterior variables with the chains joined: name -> (chains * draws,
+    *shape); evenly thinned to at most ``max_draws`` when given."""
+    post = group(idata, "posterior")
+    out = {}
+    for n in names:
+        arr = np.asarray(post[n].values)
+        arr = arr.reshape(-1, *arr.shape[2:])
+        if max_draws is not None:
+            arr = arr[::max(1, arr.shape[0] // max_draws)][:max_draws]
+        out[n] = arr
+    return out
 
 
 def ess(x, method: str = "bulk") -> float:

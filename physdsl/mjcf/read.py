@@ -12,11 +12,14 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..errors import UsageError
+from ..physics.inertia import unit_inertia
 from ..syntax import ast
 from ..syntax.printer import format_module
-from . import require_mujoco
 from .build import Names, block, call, field, quantity, quat
+from .contacts import contact_items, geom_pairs
 from .features import Notes, scan_spec
+from .loading import require_mujoco
 
 _TOL = 1e-9
 
@@ -55,7 +58,7 @@ class _Reader:
         self.joint_kind: dict[int, str] = {}
         self.geom_body: dict[int, str] = {}  # geom -> physdsl body carrying its shape
         self.key = self._key(key)
-        self.geom_pairs = self._geom_pairs()
+        self.geom_pairs = geom_pairs(self.mj, m)
         self.d = self._reference()
 
     # ---- state -----------------------------------------------------------------------------
@@ -71,7 +74,6 @@ class _Reader:
             return names.index(key)
         if key.isdigit() and int(key) < m.nkey:
             return int(key)
-        from ..errors import UsageError
         raise UsageError(f"no keyframe '{key}' in the model",
                          hint="keyframes: " + (", ".join(n or str(i) for i, n in enumerate(names))
                                                or "none"))
@@ -165,8 +167,6 @@ class _Reader:
 
     def _inertia_from_shape(self, g: int, b: int) -> bool:
         """Whether physdsl's own inertia of the shape at this mass equals MuJoCo's (then it is left out)."""
-        from ..physics.inertia import unit_inertia
-
         m, G = self.m, self.mj.mjtGeom
         t, s = int(m.geom_type[g]), m.geom_size[g]
         kinds = {int(G.mjGEOM_SPHERE): ("sphere", {"radius": s[0]}),
@@ -418,87 +418,10 @@ class _Reader:
             if m.actuator_forcelimited[a]:
                 self.notes.add(f"actuator '{label}': forcerange clamping is not expressible")
 
-    def _geom_pairs(self) -> list[tuple[int, int, float]]:
-        """Geom pairs MuJoCo tests for contact (its filters: same weld body, parent, contype/
-        conaffinity, exclude; plus explicit pairs), with the friction it would use."""
-        m = self.m
-        out = []
-        weld, parent = m.body_weldid, m.body_parentid
-        filterparent = not (m.opt.disableflags & self.mj.mjtDisableBit.mjDSBL_FILTERPARENT)
-        excluded = {int(s) for s in m.exclude_signature}
-        for g1 in range(m.ngeom):
-            for g2 in range(g1 + 1, m.ngeom):
-                b1, b2 = m.geom_bodyid[g1], m.geom_bodyid[g2]
-                w1, w2 = weld[b1], weld[b2]
-                if w1 == w2:
-                    continue
-                if filterparent and w1 and w2 and (weld[parent[w1]] == w2 or weld[parent[w2]] == w1):
-                    continue
-                if not (m.geom_contype[g1] & m.geom_conaffinity[g2]
-                        or m.geom_contype[g2] & m.geom_conaffinity[g1]):
-                    continue
-                if ((min(b1, b2) << 16) + max(b1, b2)) in excluded:
-                    continue
-                out.append((g1, g2, float(max(m.geom_friction[g1][0], m.geom_friction[g2][0]))))
-        for p in range(m.npair):
-            out.append((int(m.pair_geom1[p]), int(m.pair_geom2[p]), float(m.pair_friction[p][0])))
-        return out
-
-    def mujoco_pairs(self) -> dict[frozenset, float]:
-        """Pairs of physdsl bodies MuJoCo tests for contact, with the friction it would use."""
-        out: dict[frozenset, float] = {}
-        for g1, g2, mu in self.geom_pairs:
-            self._add_pair(out, g1, g2, mu)
-        return out
-
-    def _add_pair(self, out, g1, g2, mu):
-        a, b = self.geom_body.get(g1), self.geom_body.get(g2)
-        if a is None or b is None or a == b:
-            return
-        out[frozenset((a, b))] = float(mu)
-
-    def physdsl_pairs(self, contacts=()) -> set[frozenset]:
-        """The pairs physdsl tests in the scene read so far plus ``contacts``: the language's
-        own rule, by resolving the text (controls left out: their file may not exist yet;
-        mesh files written to a temporary folder)."""
-        import tempfile
-        from pathlib import Path
-
-        from ..syntax import loads
-
-        items = (ast.WorldItem(block()), *self.bodies, *self.joints, *contacts)
-        text = format_module(ast.Module((ast.SceneDecl("pairs", items),)))
-        with tempfile.TemporaryDirectory() as tmp:
-            for name, content in self.files.items():
-                (Path(tmp) / name).write_text(content)
-            scene = loads(text, "<imported scene>", tmp)
-        return {frozenset(p) for p in scene.contact_pairs}
-
     def contact_items(self):
-        """``contact`` statements for the pairs MuJoCo tests (friction as MuJoCo combines it,
-        restitution 0); pairs only one side tests are listed."""
-        mj_pairs = self.mujoco_pairs()
-        default = self.physdsl_pairs()
-        for pair in sorted(default - set(mj_pairs), key=sorted):
-            a, b = sorted(pair)
-            self.notes.add(f"contact {a}, {b}: physdsl tests this pair, MuJoCo's contype/"
-                           "conaffinity, parent filter or exclude does not")
-        for pair, mu in mj_pairs.items():
-            a, b = sorted(pair)
-            fs = ([field("friction", quantity(mu))] if mu > 0 else []) + \
-                [field("restitution", quantity(0.0))]
-            self.contacts.append(ast.ContactItem(a, b, block(*fs)))
-        if set(mj_pairs) - default:  # a contact statement may switch a pair on; check
-            tested = self.physdsl_pairs(self.contacts)
-            for pair in set(mj_pairs) - tested:
-                a, b = sorted(pair)
-                self.notes.add(f"contact {a}, {b}: MuJoCo tests this pair, physdsl does not "
-                               "(physdsl's contact rules leave it out)")
-                self.contacts = [c for c in self.contacts if {c.a, c.b} != {a, b}]
-        if self.contacts:
-            self.notes.add("contacts: MuJoCo's soft contacts (solref, solimp, condim, torsional "
-                           "and rolling friction) become hard contacts with Coulomb friction and "
-                           "restitution 0")
+        """``contact`` statements for the pairs MuJoCo tests (see ``contacts``)."""
+        self.contacts = contact_items(self.geom_pairs, self.geom_body, self.bodies, self.joints,
+                                      self.files, self.notes)
 
     def world(self):
         m, mj = self.m, self.mj

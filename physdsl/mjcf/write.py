@@ -9,14 +9,20 @@ exactly the pairs physdsl does. What MJCF cannot hold is returned as notes.
 """
 from __future__ import annotations
 
+import ctypes
+import glob
+import os
 from contextlib import contextmanager
 
 import numpy as np
 
+from ..errors import UsageError
+from ..expr import evaluate
 from ..physics.model import build_model
 from ..physics.params import evaluate_params, shape_size
-from . import require_mujoco
+from ..syntax import ast, parse
 from .features import Notes
+from .loading import require_mujoco
 
 # effects that become MJCF attributes (the rest are listed as not exported)
 _EXPORTED = {"gravity", "joint_damping", "joint_friction", "joint_spring", "control_force",
@@ -59,8 +65,6 @@ def _set_scalar(obj, attr: str, value: float) -> None:
 
 def _control_names(scene) -> dict[str, str]:
     """Target -> control name, read from the scene's source (the Scene keeps only the effect)."""
-    from ..syntax import ast, parse
-
     if not scene.source:
         return {}
     decl = parse(scene.source, str(scene.path or "<scene>")).scene
@@ -185,14 +189,11 @@ class _Writer:
         if massless:
             geom.density = 0.0
         if b.color is not None:
-            from ..expr import evaluate
             geom.rgba = np.r_[np.asarray(evaluate(b.color, self.prm_values), dtype=float), 1.0]
         self.geom_of[b.name] = b.name
 
     def sites(self, b, body):
         """Markers on body ``b`` as MJCF sites (the MJCF body frame is the physdsl body frame)."""
-        from ..expr import evaluate
-
         for mk in getattr(self.scene, "markers", ()):
             if mk.body == b.name:
                 site = body.add_site(name=mk.name,
@@ -221,7 +222,6 @@ class _Writer:
                             axis=R.T @ prm["axis"][k])
         joint = self.scene.joints[tj.scene_joint]
         if joint.limits is not None:
-            from ..expr import evaluate
             jt.range = [float(evaluate(joint.limits[0], self.prm_values)),
                         float(evaluate(joint.limits[1], self.prm_values))]
             jt.limited = mj.mjtLimited.mjLIMITED_TRUE
@@ -295,10 +295,6 @@ class _Writer:
 def _exact_numbers(mj, notes: Notes):
     """MuJoCo writes 6 significant digits by default; ask its writer for exact numbers (the
     shortest text that reads back as the same double) while we write, then restore it."""
-    import ctypes
-    import glob
-    import os
-
     lib = None
     for path in glob.glob(os.path.join(os.path.dirname(mj.__file__), "libmujoco*")):
         try:
@@ -325,7 +321,6 @@ def write_mjcf(scene, values) -> tuple[str, list[str]]:
     """(MJCF text, notes) of ``scene`` with unknowns at ``values``."""
     missing = [u.name for u in scene.unknowns if u.name not in values]
     if missing:
-        from ..errors import UsageError
         raise UsageError(f"no value for unknown '{missing[0]}' of scene '{scene.name}'",
                          hint="export with the posterior fitted to this scene")
     w = _Writer(scene, values)

@@ -8,8 +8,8 @@ import pytest
 
 from physdsl.errors import PhysError, UsageError
 from physdsl.export import (Support, block_texts, drop_parts, fit_draws, marginal_text, number,
-                            set_unknown, _snippet)
-from physdsl.sample import _eval_ast
+                            set_unknown, snippet)
+from physdsl.sample import expression_value
 from physdsl.syntax import ast as A
 from physdsl.syntax.parser import parse, parse_field
 from physdsl.syntax.units import parse_unit
@@ -51,7 +51,7 @@ def test_block_expressions_evaluate_to_the_fitted_transform():
         env = {n: (np.asarray(v), parse_unit("m/m")[1]) for n, v in zip(z_names, z)}
         y = b.mean + b.chol @ z
         for name, text in block_texts(b, z_names, fit, units).items():
-            value, dim = _eval_ast(parse_field(f"x: {text}").value, env)
+            value, dim = expression_value(parse_field(f"x: {text}").value, env)
             idx = [k for k, (n, _) in enumerate(b.components) if n == name]
             want = np.array([fit.supports[name].component(i).from_unconstrained(y[k])
                              for k, (_, i) in zip(idx, [b.components[k] for k in idx])])
@@ -135,7 +135,7 @@ def test_drop_unknown_name_is_a_usage_error():
 
 def test_set_unknown_finds_params_fields_effects_and_noise():
     module, _ = _pendulum()
-    value = _snippet("x ~ log_normal(-0.5, 0.1)")
+    value = snippet("x ~ log_normal(-0.5, 0.1)")
     for name in ("L", "hinge.initial", "joint_damping@hinge.coefficient"):
         module = set_unknown(module, name, value)
     items = module.scene.items
@@ -144,6 +144,6 @@ def test_set_unknown_finds_params_fields_effects_and_noise():
     assert hinge.block.get("initial").value == value
     eff = next(i for i in items if isinstance(i, A.EffectItem))
     assert eff.block.get("coefficient").value == value
-    module = set_unknown(module, "bob.position.noise", _snippet("x: 3 mm"))
+    module = set_unknown(module, "bob.position.noise", snippet("x: 3 mm"))
     with pytest.raises(PhysError, match="cannot find"):
         set_unknown(module, "bob.nothing", value)
