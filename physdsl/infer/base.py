@@ -6,7 +6,8 @@ parameters; ``sample`` advances the chains by ``n`` draws. Both are pure functio
 inputs (keys included), so running in blocks and resuming from a checkpoint gives the same
 draws as one uninterrupted run. Compiled stages take ``problem.data`` as an argument and live
 in ``problem.cache``, shared by every Model of one scene structure, so a new dataset reuses
-them. A new backend is one module with ``@register_backend``.
+them. A new backend is one module with ``@register_backend`` (in ``infer/backends/``, or a
+plug-in's module named by an entry point of group ``physdsl.backends``).
 """
 from __future__ import annotations
 
@@ -18,9 +19,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import UsageError
+from ..registry import Registry
 from ..physics.forward import FORWARD_MODE_MAX, inline_calls, jacobian, prune
 
-BACKENDS: dict[str, "Backend"] = {}
+BACKENDS: Registry["Backend"] = Registry("physdsl.backends", "inference backend")
 
 
 @dataclass(frozen=True)
@@ -89,13 +91,13 @@ class Backend:
 
 def register_backend(cls):
     """Class decorator: make a backend available by its ``name``."""
-    BACKENDS[cls.name] = cls()
+    BACKENDS.add(cls.name, cls(), cls.__module__)
     return cls
 
 
 def get_backend(name: str) -> Backend:
-    from . import backends  # noqa: F401 - registers the built-in backends
-
+    """The backend registered as ``name`` (built-ins: ``infer/backends/``, registered when
+    ``physdsl.infer`` is imported; plug-ins: entry-point group ``physdsl.backends``)."""
     if name not in BACKENDS:
         raise UsageError(f"unknown backend '{name}'",
                          hint=f"known backends: {', '.join(sorted(BACKENDS))}")

@@ -20,6 +20,7 @@ import jax
 import jax.numpy as jnp
 
 from . import contact_stage as cs
+from .contact_models import CONTACT_MODELS, contact_model
 from .dynamics import forward_dynamics, generalized_forces, joint_space_accel, mass_matrix
 from .effects import EFFECTS, Ctx, zero_load
 from .free import free_accel, free_kinematics, free_mass_matrix
@@ -119,6 +120,7 @@ def either(near, contact, apart, operand, forward_only: bool):
     return jax.lax.while_loop(lambda c: c[0], body, (near, apart(operand)))[1]
 
 
+@contact_model("lcp")
 def _lcp_step(model, prm, state, t, h, forward_only=False):
     """The LCP contact step where some candidate is within reach (``cs.closing_within``), else
     the scene's integrator without contact forces (``_flight``), by ``either``."""
@@ -143,6 +145,7 @@ def _lcp_step(model, prm, state, t, h, forward_only=False):
                   forward_only)
 
 
+@contact_model("compliant")
 def _compliant_step(model, prm, state, t, h, forward_only=False):
     """Semi-implicit Euler with penalty contact forces where some candidate is within the
     contact margin; else (RK4 scenes) RK4 without contact forces, which are zero there."""
@@ -173,9 +176,7 @@ def step(model: Model, prm: dict, state: State, t, h, forward_only: bool = False
     """Advance ``state`` from time t by h (one substep); ``forward_only``: the rollout is
     differentiated in forward mode alone (contact steps skipped under vmap, ``either``)."""
     if model.ncon:
-        if model.contact_model == "lcp":
-            return _lcp_step(model, prm, state, t, h, forward_only)
-        return _compliant_step(model, prm, state, t, h, forward_only)
+        return CONTACT_MODELS[model.contact_model](model, prm, state, t, h, forward_only)
     if model.integrator == "rk4":
         return _rk4(model, prm, state, t, h)
     v_next = state.v + h * _accel(model, prm, state.q, state.v, state, t, t)

@@ -12,6 +12,7 @@ import numpy as np
 
 from ..errors import ModelError
 from ..scene import Scene
+from .contact_models import CONTACT_MODELS
 
 DOFS = {"free": (7, 6), "ball": (4, 3), "hinge": (1, 1), "slider": (1, 1), "fixed": (0, 0)}
 SHAPES = ("sphere", "box", "cylinder", "capsule", "plane", "mesh")
@@ -243,8 +244,9 @@ def build_model(scene: Scene) -> Model:
     if scene.world.integrator not in ("semi_implicit_euler", "rk4"):
         raise ModelError(f"unknown integrator '{scene.world.integrator}'",
                          hint="use semi_implicit_euler or rk4")
-    if scene.world.contact_model not in ("lcp", "compliant"):
-        raise ModelError(f"unknown contact model '{scene.world.contact_model}'", hint="use lcp or compliant")
+    if scene.world.contact_model not in CONTACT_MODELS:
+        raise ModelError(f"unknown contact model '{scene.world.contact_model}'",
+                         hint=f"use {' or '.join(sorted(CONTACT_MODELS))}")
     free_bodies = _free_bodies(joints)
     dt = float(scene.world.timestep)
     if not dt > 0:

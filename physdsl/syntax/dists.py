@@ -1,17 +1,19 @@
 """numpyro distributions by snake_case name: lookup, argument names, constraints, shapes.
 
-The language accepts any numpyro distribution; this module answers, without sampling,
+The language accepts any numpyro distribution (registered in ``DISTRIBUTIONS``, with those of
+plug-ins: entry-point group ``physdsl.distributions``); this module answers, without sampling,
 which class a name means, how its arguments bind, whether constant arguments satisfy the
 distribution's constraints, and the shape and support of a draw.
 """
 from __future__ import annotations
 
 import inspect
-from functools import lru_cache
 
 import numpy as np
 import numpyro.distributions as nd
 from numpyro.distributions import constraints as C
+
+from ..registry import Registry
 
 # arguments that are plain numbers whatever the unknown's unit (shapes, exponents, probabilities)
 DIMLESS_ARGS = {"concentration", "concentration0", "concentration1", "df", "probs", "logits",
@@ -49,19 +51,36 @@ def snake(name: str) -> str:
     return "".join(out)
 
 
-@lru_cache(maxsize=1)
-def catalogue() -> dict[str, object]:
-    """snake_case name -> numpyro class or factory function."""
-    out = {}
+DISTRIBUTIONS: Registry[object] = Registry("physdsl.distributions", "distribution")
+
+
+def register_distribution(name: str):
+    """Decorator: make a numpyro-style distribution class or factory available to ``~`` as
+    ``name`` (a plug-in's module, named by an entry point of group ``physdsl.distributions``)."""
+    def deco(obj):
+        return DISTRIBUTIONS.add(name, obj, obj.__module__)
+    return deco
+
+
+def _numpyro_distributions():
+    """numpyro's distribution classes and factory functions, by snake_case name."""
     for attr in dir(nd):
         obj = getattr(nd, attr)
         if attr.startswith("_") or attr in _NOT_DISTS or not attr[0].isupper():
             continue
         if isinstance(obj, type) and issubclass(obj, nd.Distribution):
-            out[snake(attr)] = obj
+            yield snake(attr), obj
         elif inspect.isfunction(obj) and obj.__module__.startswith("numpyro.distributions"):
-            out[snake(attr)] = obj
-    return out
+            yield snake(attr), obj
+
+
+for _name, _obj in _numpyro_distributions():
+    DISTRIBUTIONS.add(_name, _obj, "numpyro.distributions")
+
+
+def catalogue() -> Registry:
+    """snake_case name -> numpyro class or factory function (and plug-ins')."""
+    return DISTRIBUTIONS
 
 
 def find(name: str):

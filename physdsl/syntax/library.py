@@ -12,6 +12,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from ..errors import PhysError, PhysImportError, PhysNameError, Span
+from ..registry import EFFECT_DECLARATIONS
 from . import ast
 from .bounds import Bounds
 from .parser import parse
@@ -119,12 +120,17 @@ def expand(module: ast.Module, module_dir: Path | None, loaded: Loaded, chain: t
 
 
 @lru_cache(maxsize=4)
-def _stdlib_cached(stamp: tuple) -> Loaded:
+def _stdlib_cached(stamp: tuple, plugins: tuple = ()) -> Loaded:
     loaded = Loaded()
     errors: list[PhysError] = []
     for f in sorted((STDLIB_DIR / "effects").glob("*.phys")):
         root = ast.Module((ast.Import(f"effects/{f.name}", None),), (), "<stdlib>")
         expand(root, STDLIB_DIR, loaded, (), errors, "", Bounds((STDLIB_DIR.resolve(),)))
+    for name, text in plugins:  # plug-ins' effects: declared in their own modules
+        try:
+            expand(parse(text, f"<effect {name}>"), None, loaded, (), errors, text, Bounds(()))
+        except PhysError as ex:
+            errors.append(ex)
     if errors:
         from ..errors import PhysErrors
         raise errors[0] if len(errors) == 1 else PhysErrors(errors)
@@ -132,10 +138,11 @@ def _stdlib_cached(stamp: tuple) -> Loaded:
 
 
 def stdlib() -> Loaded:
-    """The standard library's effects (cached; reloaded when a stdlib file changes)."""
+    """The standard library's effects and those of plug-ins (``registry.EFFECT_DECLARATIONS``,
+    entry-point group ``physdsl.effects``); cached, reloaded when a stdlib file changes."""
     files = sorted((STDLIB_DIR / "effects").glob("*.phys"))
     stamp = tuple((str(f), f.stat().st_mtime_ns) for f in files)
-    return _stdlib_cached(stamp)
+    return _stdlib_cached(stamp, tuple(sorted(EFFECT_DECLARATIONS.items())))
 
 
 def load_library(module: ast.Module, module_dir: Path | None, source: str,

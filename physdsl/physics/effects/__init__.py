@@ -1,9 +1,12 @@
-"""Physical effects of the standard library, one module each, registered in ``EFFECTS``."""
-from . import (  # noqa: F401  (importing registers)
-    buoyancy, constant_force, contact_params, control_force, damper, gravity, joint_damping,
-    joint_friction, joint_spring, linear_drag, magnus, quadratic_drag, rolling_resistance,
-    spring, wind,
-)
+"""Physical effects, one module each, registered in ``EFFECTS`` by ``@register``: every module
+of this package is imported here (a new effect is one new file), and plug-ins come through
+the entry-point group ``physdsl.effects`` (``physdsl.registry``)."""
+import importlib
+import pkgutil
+
 from .base import EFFECTS, Ctx, Effect, Load, register, zero_load
+
+for _m in pkgutil.iter_modules(__path__):
+    importlib.import_module(f"{__name__}.{_m.name}")
 
 __all__ = ["EFFECTS", "Ctx", "Effect", "Load", "register", "zero_load"]

@@ -1,9 +1,12 @@
 """Effect registry and the Load an effect returns: world forces/torques per body plus joint forces.
 
-An effect is a pure function ``force(model, site, p, ctx) -> Load`` registered under its stdlib
-name; ``p`` holds the use's evaluated parameters, ``ctx`` the kinematics and time. Loads are
-body-level (force at the centre of mass, torque, both world axes) so a scene of free bodies
-needs no Jacobians: the integrator maps the summed Load to generalized forces once per stage.
+An effect is a pure function ``force(model, site, p, ctx) -> Load`` registered under its
+name in ``EFFECTS`` (entry-point group ``physdsl.effects``), with what it acts on; ``p`` holds
+the use's evaluated parameters, ``ctx`` the kinematics and time. Its parameters, units, priors
+and off values are the language's: ``stdlib/effects/<name>.phys`` for physdsl's own (whose
+``on ...`` a test checks against ``acts_on``), the ``declaration`` block given to
+``register`` for a plug-in's (the ``effect_type NAME on ...`` line is written from the
+registration, so a plug-in states its name and targets once).
 Effects with ``stage="contact"`` (friction, restitution) are read by the contact stage instead.
 """
 from __future__ import annotations
@@ -14,6 +17,7 @@ from typing import Callable, NamedTuple
 import jax.numpy as jnp
 
 from ...errors import ModelError
+from ...registry import EFFECT_DECLARATIONS, Registry
 from ..kinematics import Kin
 from ..rows import spread, take
 
@@ -77,16 +81,25 @@ class Effect:
             self.validate(scene, use, joint)
 
 
-EFFECTS: dict[str, Effect] = {}
+EFFECTS: Registry[Effect] = Registry("physdsl.effects", "effect")
 
 
 def register(name: str, acts_on: tuple[str, ...], stage: str = "force", validate=None,
-             central: bool = False):
-    """Decorator registering ``force`` as the physics of stdlib effect ``name``."""
+             central: bool = False, declaration: str | None = None):
+    """Decorator registering ``force`` as the physics of effect ``name``. ``declaration``: the
+    ``{ doc ... param ... }`` block of an effect with no file in ``stdlib/`` (a plug-in's)."""
     def deco(fn):
-        EFFECTS[name] = Effect(name, fn, acts_on, stage, validate, central)
+        EFFECTS.add(name, Effect(name, fn, acts_on, stage, validate, central), fn.__module__)
+        if declaration is not None:
+            EFFECT_DECLARATIONS.add(name, declaration_text(name, acts_on, declaration),
+                                    fn.__module__)
         return fn
     return deco
+
+
+def declaration_text(name: str, acts_on: tuple[str, ...], block: str) -> str:
+    """The .phys ``effect_type`` of a registered effect from its ``{ ... }`` block."""
+    return f"effect_type {name} on {' or '.join(acts_on)} {block.strip()}\n"
 
 
 def wrenches(model, ctx: Ctx, bodies, forces, points=None, torques=None) -> Load:

@@ -5,7 +5,7 @@ from ..rows import take
 from .base import register, wrenches
 
 
-@register("gravity", ("world", "body"), central=True)
+@register("gravity", ("world",), central=True)
 def gravity(model, site, p, ctx):
     m = take(ctx.prm["mass"], site.bodies)  # static bodies ignore their load
     return wrenches(model, ctx, site.bodies, m[:, None] * p["acceleration"][None, :])
