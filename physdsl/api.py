@@ -89,10 +89,20 @@ def diagnose(model: Model, idata, *, confirm_top: int = 2, outdir=None, echo=Non
     return _diagnose(model, idata, confirm_top=confirm_top, outdir=outdir, echo=echo, **options)
 
 
+def _scene_path(scene) -> Path:
+    scene = scene.scene if isinstance(scene, Model) else scene
+    if isinstance(scene, Scene):
+        if scene.path is None:
+            raise UsageError("this needs a scene read from a file (refine and export read its text "
+                             "and data beside it)", hint="load it from its .phys path")
+        return Path(scene.path)
+    return Path(scene)
+
+
 def refine(scene: Scene | str | Path, outdir: str | Path, **options) -> list[Round]:
     """The loop fit, check, diagnose, add the effect, refit until nothing improves the evidence;
     each round's files in ``outdir`` (see ``physdsl.diagnose.refine.refine`` for the options)."""
-    return _refine(scene.path if isinstance(scene, Scene) else scene, outdir, **options)
+    return _refine(_scene_path(scene), outdir, **options)
 
 
 def add_effect(scene: Scene, effect: str, target: str | Sequence[str]) -> Scene:
@@ -108,7 +118,7 @@ def add_effect(scene: Scene, effect: str, target: str | Sequence[str]) -> Scene:
     return load_text(scene, with_effect(scene, Candidate("effect", effect, tuple(t.strip() for t in parts))))
 
 
-def fitted_values(model: Model, idata=None) -> dict:
+def _fitted_values(model: Model, idata=None) -> dict:
     """The values a fitted model is judged at: the most likely draw of ``idata``, or of a
     quick MAP fit made here when there is none."""
     if idata is None:
@@ -127,7 +137,7 @@ def design_experiment(model_a: Model, model_b: Model, vary: Sequence[str], *, id
         require_unknown((model_a, model_b), field)
     if objective not in OBJECTIVES:
         raise UsageError(f"unknown objective '{objective}'", hint=" or ".join(OBJECTIVES))
-    va, vb = fitted_values(model_a, idata_a), fitted_values(model_b, idata_b)
+    va, vb = _fitted_values(model_a, idata_a), _fitted_values(model_b, idata_b)
     return [design(model_a, va, model_b, vb, field, rng, objective, labels) for field in vary]
 
 
@@ -152,15 +162,6 @@ def track(source: str | Path, colors: Sequence, *, tolerance: float = 0.08,
     ``camera.json`` and a depth plane or the object's radius, world positions."""
     return track_source(source, colors, tolerance=tolerance, camera=camera,
                         depth_plane=depth_plane, radius=radius, rate=rate)
-
-
-def _scene_path(scene) -> Path:
-    scene = scene.scene if isinstance(scene, Model) else scene
-    if isinstance(scene, Scene):
-        if scene.path is None:
-            raise UsageError("export needs a scene read from a file", hint="load it from its .phys path")
-        return Path(scene.path)
-    return Path(scene)
 
 
 def export(scene: Model | Scene | str | Path, idata, **options) -> str:
