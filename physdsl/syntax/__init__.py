@@ -7,11 +7,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..errors import PhysError, PhysImportError
+import numpy as np
+
+from .. import expr as E
+from ..errors import PhysImportError
 from ..scene import Scene
-from . import ast
+from . import ast, dists
 from .parser import parse
-from .printer import format_module
+from .printer import format_module, format_prior
 from .resolve import resolve
 
 __all__ = ["ast", "parse", "load", "loads", "format_source", "unknowns_table", "unknowns_rows"]
@@ -49,7 +52,6 @@ def format_source(text: str, filename: str = "<string>") -> str:
 
 def unknowns_rows(scene: Scene) -> list[tuple[str, str, str, str, str, str]]:
     """(name, prior, support, shape, unit, used in) for each unknown."""
-    from .printer import format_prior
     rows = []
     for u in scene.unknowns:
         support = _support(u)
@@ -59,9 +61,6 @@ def unknowns_rows(scene: Scene) -> list[tuple[str, str, str, str, str, str]]:
 
 
 def _support(u) -> str:
-    from . import dists
-    import numpy as np
-    from .. import expr as E
     obj = dists.find(u.prior.dist)
     if obj is None:
         return "?"

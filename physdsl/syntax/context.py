@@ -76,6 +76,7 @@ class Resolver:
         self.pair_order: dict[frozenset, tuple[str, str]] = {}
 
     def err(self, cls, msg, span, hint=None, source=None):
+        """The error ``cls(msg, span, hint)`` with the text of the file ``span`` lies in."""
         return cls(msg, span, hint, source=source if source is not None else self._text_for(span))
 
     def _text_for(self, span: Span | None) -> str | None:
@@ -100,9 +101,11 @@ class Resolver:
         return None
 
     def register(self, path: str, node, spec_: Spec | None):
+        """Field ``path`` is written as ``node`` and accepts ``spec_`` (resolved on demand)."""
         self.sources[path] = (node, spec_, "")
 
     def value(self, path: str, span: Span | None = None) -> R:
+        """The resolved value of field ``path`` (memoised; a reference cycle is an error)."""
         if path in self.memo:
             return self.memo[path]
         if path in self.failed:
@@ -138,6 +141,7 @@ class Resolver:
         return self.check(r, spec_, label, node)
 
     def check(self, r: R, spec_: Spec, label: str, node) -> R:
+        """``r`` held to ``spec_`` (``checks.check``)."""
         return check(r, spec_, label, node, self.err)
 
     def expr(self, node) -> R:
@@ -149,6 +153,7 @@ class Resolver:
         return self.name(node) if isinstance(node, ast.Name) else self.dotted(node)
 
     def is_param(self, word: str) -> bool:
+        """Whether ``word`` is the name of a param (or library param)."""
         return word in self.sources and "." not in word
 
     def name(self, node: ast.Name) -> R:
@@ -206,6 +211,7 @@ class Resolver:
         return out
 
     def declare_fields(self, name, block, table, what, extra=()):
+        """Register the fields of item ``name``'s block that ``table`` lists; return all of them."""
         fs = self.fields_of(block, table, f"{what} '{name}'", extra)
         for k, f in fs.items():
             if k in table:
@@ -213,12 +219,14 @@ class Resolver:
         return fs
 
     def opt(self, path: str) -> E.Expr | None:
+        """The Expr of field ``path``, None when not written (or when it failed: recorded)."""
         if path not in self.sources:
             return None
         r = self.collect(self.value, path)
         return r.expr if r is not None else None
 
     def flag(self, fs: dict, key: str, default: bool) -> bool:
+        """The true/false field ``key`` of ``fs`` (``default`` when absent)."""
         f = fs.get(key)
         if f is None:
             return default

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataError, Span
+from ..observe.image import is_video, video_frames
 
 
 def _rows(path: Path, span: Span | None) -> tuple[list[str], list[list[str]]]:
@@ -130,8 +131,6 @@ def read_image_times(base: Path, pattern: str, rate: float | None, times_file: P
     ``pattern`` is a glob of image files (sorted by name) or one video file, whose frames are
     VideoFrame entries and whose own frame rate serves when neither a rate nor times is given.
     """
-    from ..observe.image import is_video, video_frames
-
     if rate is not None and times_file is not None:
         raise DataError("give the frame times with 'at RATE' or 'times \"file.csv\"', not both",
                         base / pattern, span=span)

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 from ..errors import PhysError, PhysErrors, PhysNameError, PhysTypeError, Span
 from . import ast
+from .parser import parse_field
 
 _TEMPLATE = re.compile(r"\{([^{}]*)\}")
 # item fields that refer to another item by name (aliases apply there)
@@ -134,7 +135,6 @@ def _template(text: str, env: dict[str, int], span: Span | None) -> str:
         if ".." in inner:
             raise PhysTypeError(f"a range ('{{{inner}}}') is not a name", span,
                                 f"loop over it: 'for i in {inner} {{ ... {{i}} ... }}'")
-        from .parser import parse_field
         try:
             node = parse_field(f"x: {inner}").value
         except PhysError:
