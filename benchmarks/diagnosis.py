@@ -86,7 +86,9 @@ def run_case(name: str, confirm: int, seed: int) -> dict:
 
     import physdsl  # noqa: F401 - float64
     from physdsl.compile import Model
-    from physdsl.diagnose.rank import diagnose, quick_fit, unknown_key
+    from physdsl.diagnose.edits import unknown_key
+    from physdsl.diagnose.rank import diagnose
+    from physdsl.infer.fit import quick_fit
     from physdsl.diagnose.candidates import Candidate
     from physdsl.syntax import load
 

@@ -77,7 +77,8 @@ def _report(model, idata, backend: str) -> None:
     import json
 
     from ..infer.intervals import describe
-    from ..infer.output import fit_quality_lines, format_table, summary_rows, warnings_in_words
+    from ..diagnose.quality import fit_quality_lines
+    from ..infer.output import format_table, summary_rows, warnings_in_words
 
     rows = summary_rows(model, idata)
     typer.echo(format_table(rows))

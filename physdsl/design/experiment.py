@@ -18,6 +18,7 @@ from typing import Callable
 import numpy as np
 
 from ..errors import UsageError
+from ..expr import constant_value
 from ..observe import trajectory
 
 
@@ -141,8 +142,6 @@ def search(pair: Pair, lo: float, hi: float, objective: Objective = max_sigma, n
 
 def prior_range(model, field: str, vector: bool) -> tuple[float, float]:
     """Mean ± 3 sd of a normal prior (of the magnitude, for a vector along its mean)."""
-    from ..expr import constant_value
-
     u = next(u for u in model.unknowns if u.name == field)
     if u.prior.dist != "normal" or len(u.prior.args) < 2:
         raise UsageError(f"--vary {field}: its prior is not normal; give --range LO:HI")
@@ -168,20 +167,17 @@ def design(model_a, values_a, model_b, values_b, field: str, rng=None,
                     labels[1], grid, pair.vector)
 
 
-def for_tie(model, cands: dict, a, b) -> Proposal | None:
-    """The proposal for two tied diagnosis candidates ``a`` and ``b`` (rank.Ranked rows whose
-    refits kept their most likely draw, ``fitted["point"]``): the scene with each added, at its
-    refit's values, varying the target's initial velocity (a body) or angle (a joint) over its
-    prior range. None where the target has no such unknown."""
-    from ..compile import Model
-    from ..diagnose.edits import load_text, with_effect
-
+def for_tie(model, a, b) -> Proposal | None:
+    """The proposal for two tied diagnosis candidates ``a`` and ``b`` (``diagnosis.Ranked``
+    rows refitted with their effect added: ``refit.model``, whose most likely draw is
+    ``fitted["point"]``): each refit's model at its values, varying the target's initial
+    velocity (a body) or angle (a joint) over its prior range. None where the target has no
+    such unknown."""
     field = next((f for f in (f"{a.target}.velocity", f"{a.target}.initial")
                   if f in model.unknown_names), None)
-    if field is None or not all("point" in (r.fitted or {}) for r in (a, b)):
+    if field is None or not all(r.refit is not None and "point" in (r.fitted or {}) for r in (a, b)):
         return None
-    models = [Model(load_text(model.scene, with_effect(model.scene, cands[f"{r.effect}@{r.target}"])))
-              for r in (a, b)]
+    models = [r.refit.model for r in (a, b)]
     vals = [{k: np.asarray(v) for k, v in r.fitted["point"].items()} for r in (a, b)]
     try:
         return design(models[0], vals[0], models[1], vals[1], field, labels=(a.effect, b.effect))

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..expr import constant_value, is_constant
 from ..scene import EffectDecl, Scene
 
 # Effects never proposed: they are set up by the user, not discovered.
@@ -153,8 +154,6 @@ def _targets(scene: Scene, decl: EffectDecl):
 
 
 def _expr_text(expr) -> str:
-    from ..expr import constant_value, is_constant
-
     if not is_constant(expr):
         raise ValueError("spring anchor depends on unknowns")
     v = constant_value(expr)

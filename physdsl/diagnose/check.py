@@ -374,5 +374,3 @@ def shape_phrase(s: ShapeScore, res: Residuals, j: int, ax: AxisResult, tv: np.n
         return text
     return SHAPE_MEANING.get(s.shape, s.shape)
 
-
-from .report import write_report  # noqa: E402  (re-exported: one import for callers)

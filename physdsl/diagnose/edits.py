@@ -1,21 +1,106 @@
-"""A candidate written into, or taken out of, a scene's text (through ``syntax.edit``, the
-printer): its strength an unknown with the library prior; material-level and group candidates
-declare one shared ``param``; the unknowns that then hold its strength."""
+"""A candidate written into, or taken out of, a scene as a value.
+
+A ``Draft`` is a Scene with the AST it was resolved from: a candidate's edit changes the AST
+(``syntax.edit``: its strength an unknown with the library prior; material-level and group
+candidates declare one shared ``param``) and the resolver turns the result into the new Scene.
+Nothing is parsed again and nothing printed: text is made (``Draft.text``) only where a file or
+a snippet is written. A Scene resolved from an edited AST has no source text of its own
+(``Scene.source`` is ""); its spans point into the text it was edited from.
+"""
 from __future__ import annotations
 
+import dataclasses
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import PhysNameError
-from ..syntax import edit, loads
+from ..expr import constant_value, references
+from ..scene import Scene
+from ..syntax import ast, edit, loads, parse, resolve
+from ..syntax.printer import format_module
 from .candidates import Candidate, material_pairs
+from .physical_scale import prior_text as physical_prior
+from .sensor_terms import sensor_term
+
+
+@dataclass(frozen=True)
+class Draft:
+    """A scene, the AST it is resolved from, and the text that AST's spans point into (its
+    comments and blank lines are kept when the AST is printed)."""
+
+    scene: Scene
+    module: ast.Module
+    source: str
+
+    @classmethod
+    def read(cls, path) -> "Draft":
+        """The draft of a scene file: read, parsed and resolved once."""
+        path = Path(path)
+        text = path.read_text(encoding="utf-8")
+        module = parse(text, str(path))
+        return cls(resolve(module, text, path.parent, path), module, text)
+
+    @classmethod
+    def of(cls, scene: Scene) -> "Draft":
+        """The draft of a scene read from text (its source parsed once)."""
+        return cls(scene, parse(scene.source, str(scene.path or "<string>")), scene.source)
+
+    def add(self, cand: Candidate, module: ast.Module | None = None) -> ast.Module:
+        """The AST (``module``, else this draft's) with ``cand`` added as this scene would have
+        it: its strength an unknown with the library prior (``physical_scale`` gives drag a
+        prior of its physical scale). A material-level candidate (target ``(table, *)``) or a
+        shared group (``shoulder+elbow``) declares one ``param NAME ~ prior`` and adds the
+        effect on every pair of ``table`` that lacks it (every joint of the group), each with
+        that param as its strength; a group with a strength per joint (``shoulder&elbow``) adds
+        the effect on each joint. A sensor fault becomes its term in the observation's block."""
+        module = self.module if module is None else module
+        scene = self.scene
+        if cand.kind == "sensor":
+            path, value = sensor_term(scene, cand)
+            return edit.value_set(module, path, value)
+        decl = scene.effect_library[cand.name]
+        strength = physical_prior(scene, cand) or prior_text(decl.strength.prior)
+        places = targets(scene, cand)
+        if cand.shared:
+            module = edit.param_added(module, cand.shared_param, strength)
+            strength = cand.shared_param
+        for place in places:
+            module = edit.effect_added(module, cand.name, place,
+                                       {decl.strength.name: strength, **dict(cand.params)})
+        return module
+
+    def remove(self, cand: Candidate) -> ast.Module:
+        """The AST with every effect item of ``cand`` (as ``add`` wrote it) and its shared param
+        removed: the step back a drop or a swap takes."""
+        places = ([",".join(p) for p in _pairs_with(self.scene, cand)] if cand.material
+                  else [",".join(p.target) for p in cand.parts()])
+        module = self.module
+        for place in places:
+            module = edit.item_removed(module, "effect", f"{cand.name}@{place}")
+        if cand.shared:
+            module = edit.item_removed(module, "param", cand.shared_param)
+        return module
+
+    def resolved(self, module: ast.Module) -> "Draft":
+        """The draft of an edited AST: its Scene resolved beside this scene's file."""
+        scene = resolve(module, self.source, _base_dir(self.scene), self.scene.path)
+        return Draft(dataclasses.replace(scene, source=""), module, self.source)
+
+    def with_candidate(self, cand: Candidate) -> "Draft":
+        return self.resolved(self.add(cand))
+
+    def without_candidate(self, cand: Candidate) -> "Draft":
+        return self.resolved(self.remove(cand))
+
+    def text(self) -> str:
+        """The scene as .phys text (printed here, once, e.g. to write a round's file)."""
+        return format_module(self.module, self.source)
 
 
 def prior_text(prior) -> str:
     """.phys text of a library prior (SI numbers, so no units are needed)."""
-    from ..expr import constant_value
-
     args = [_num(constant_value(a)) for a in prior.args]
     args += [f"{k}: {_num(constant_value(v))}" for k, v in prior.kwargs]
     return f"~ {prior.dist}({', '.join(args)})"
@@ -43,65 +128,30 @@ def targets(scene, cand: Candidate) -> list[str]:
     return [p.phys_target() for p in cand.parts()]
 
 
-def with_effect(scene, cand: Candidate, text: str | None = None) -> str:
-    """The scene's text (or ``text``) with candidate ``cand`` added, its strength an unknown with
-    the library prior. A material-level candidate (target ``(table, *)``) or a shared group
-    (``shoulder+elbow``) declares one ``param NAME ~ prior`` and adds the effect on every pair
-    of ``table`` that lacks it (every joint of the group), each with that param as its strength;
-    a group with a strength per joint (``shoulder&elbow``) adds the effect on each joint.
-    A sensor fault becomes its term in the observation's block (``sensor_terms``)."""
-    if cand.kind == "sensor":
-        from .sensor_terms import with_sensor
-
-        return with_sensor(scene, cand, text)
-    decl = scene.effect_library[cand.name]
-    filename = str(scene.path or "<string>")
-    text = scene.source if text is None else text
-    from .physical_scale import prior_text as physical_prior
-
-    prior = physical_prior(scene, cand) or prior_text(decl.strength.prior)
-    places = targets(scene, cand)
-    strength = prior
-    if cand.shared:
-        text = edit.add_param(text, cand.shared_param, prior, filename=filename)
-        strength = cand.shared_param
-    for place in places:
-        text = edit.add_effect(text, cand.name, place, {decl.strength.name: strength, **dict(cand.params)},
-                               filename=filename)
-    return text
-
-
-def without_effect(scene, cand: Candidate, text: str | None = None) -> str:
-    """The scene's text with every effect item of ``cand`` (as ``with_effect`` wrote it) and its
-    shared param removed: the step back a drop or a swap takes."""
-    filename = str(scene.path or "<string>")
-    text = scene.source if text is None else text
-    places = ([",".join(p) for p in _pairs_with(scene, cand)] if cand.material
-              else [",".join(p.target) for p in cand.parts()])
-    for place in places:
-        text = edit.remove_item(text, "effect", f"{cand.name}@{place}", filename=filename)
-    if cand.shared:
-        text = edit.remove_item(text, "param", cand.shared_param, filename=filename)
-    return text
+def with_effect(scene, cand: Candidate) -> str:
+    """The scene's text with ``cand`` added (``Draft.add``): what ``add-effect`` writes."""
+    draft = Draft.of(scene)
+    return format_module(draft.add(cand), draft.source)
 
 
 def _pairs_with(scene, cand: Candidate) -> list[tuple[str, ...]]:
     """The pairs whose effect ``cand.name`` has the material candidate's shared param."""
-    from ..expr import references
-
     name = strength_name(scene, cand)
     return [tuple(e.target) for e in scene.effects if e.effect == cand.name
             and cand.shared_param in references(e.params[name])]
 
 
+def _base_dir(scene) -> Path:
+    return Path(scene.path).parent if scene.path else Path.cwd()
+
+
 def load_text(scene, text):
     """A scene from ``text``, its relative data paths resolved beside ``scene``'s file."""
-    base = Path(scene.path).parent if scene.path else Path.cwd()
-    return loads(text, filename=str(scene.path or "<string>"), base_dir=base)
+    return loads(text, filename=str(scene.path or "<string>"), base_dir=_base_dir(scene))
 
 
 def unknown_keys(scene, cand: Candidate) -> list[str]:
-    """The unknowns that hold the candidate's strength once it is added (``with_effect``)."""
+    """The unknowns that hold the candidate's strength once it is added (``Draft.add``)."""
     if cand.kind == "sensor":
         return [f"{cand.target[0]}.{cand.name}"]
     if cand.shared:

@@ -19,15 +19,17 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..infer.backends.map import LaplaceError, find_mode, laplace_sqrt
+from ..infer.base import gauss_newton_fn, value_and_grad_fn
+from ..infer.problem import model_problem, start_position
+from .workflow import noise_unknowns, point_estimate
+
+STRONG = math.log(10.0)  # Δlog Z of strong evidence (Jeffreys: a Bayes factor above 10)
+
 
 def laplace_log_evidence(model, idata=None, *, values: dict | None = None) -> float | None:
     """Laplace log marginal likelihood of ``model`` at the mode near its fit (the most likely
     posterior draw of ``idata``, or constrained ``values``); None where Laplace is unreliable."""
-    from ..infer.backends.map import LaplaceError, find_mode, laplace_sqrt
-    from ..infer.base import gauss_newton_fn, value_and_grad_fn
-    from ..infer.problem import model_problem, start_position
-    from .workflow import noise_unknowns, point_estimate
-
     if idata is not None and idata.attrs.get("fit_note"):
         return None  # the fit's own Laplace step failed there: no Gaussian describes the mode
     problem = model_problem(model)

@@ -4,17 +4,37 @@ infer again, until no addition, swap or drop improves the evidence. It stops whe
 are consistent with the noise (the check's statistics, not an RMS threshold) or when nothing in
 the library explains what is left, and then says where and how the model still fails. The
 user's file is never edited: round k lives in ``OUT/round-k/scene.phys``; ``OUT/refine.json``
-records every round's error and action."""
+records every round's error and action.
+
+A round works on values: its scene file is parsed once (``edits.Draft``), every candidate is an
+edit of that AST resolved to a Scene, and the winner is the typed row that was ranked (its
+refit's scene); text is printed once, when the next round's file is written. The last round's
+Models (its fit, its refits) are kept while the next round runs, so a Model of the same
+structure (the next fit is the winner's refit scene; a drop gives the last scene back) reuses
+their compiled programs."""
 from __future__ import annotations
 
 import os
 import shutil
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from html import escape
 from pathlib import Path
+
+from matplotlib.figure import Figure
 
 from .. import io
 from ..compile import Model
+from ..errors import PhysError, UsageError
+from ..infer.fit import fit_with_fallback, start_setting
 from ..syntax import load
+from .candidates import Candidate
+from .edits import Draft
+from .loo import loo_reliability
+from .quality import fit_quality
+from .rank import diagnose
+from .report import html_page
+from .stepwise import judge, parse, reexamine
+from .workflow import check_model, point_estimate
 
 
 @dataclass
@@ -31,112 +51,156 @@ class Round:
     consistent: bool = False  # the check finds no systematic residual
 
 
+@dataclass
+class _Loop:
+    """What carries from one round to the next."""
+
+    out: Path
+    user_scene: Path
+    fit: dict  # settings of each round's fit
+    echo: object
+    # effects the loop may swap or drop, each with the scene's effects when last examined
+    revisable: dict = field(default_factory=dict)
+    change: dict = field(default_factory=lambda: {"action": None, "added": None, "replaced": None})
+    start: dict = field(default_factory=dict)  # where the first chain of a round's fit starts
+    rounds: list = field(default_factory=list)
+    kept: tuple = ()  # the last round's Models and diagnosis: their compiled programs stay alive
+
+
 def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", chains: int = 2,
            warmup: int = 300, samples: int = 300, seed: int = 0, force: bool = False,
            confirm_top: int = 2, revise=(), echo=print, progress: bool = False) -> list[Round]:
     """Fit, check, re-examine, diagnose and extend the scene until no addition, swap or drop
     improves the evidence; returns the rounds. ``revise``: effects of the user's scene
     (``effect@target``) to re-examine like those the loop adds."""
-    from .candidates import physics_candidates, sensor_candidates
-    from .rank import diagnose, fit_with_fallback, loo_reliability, start_setting, with_effect
-    from .stepwise import judge, parse, reexamine
-    from .workflow import check_model, point_estimate
-
     scene_path = Path(scene_path)
-    _check_revisable(load(scene_path), [parse(k) for k in revise])
+    user = load(scene_path)  # the user's scene checked before anything is written
+    if revise:
+        _check_revisable(Draft.of(user), [parse(k) for k in revise])
     out = io.prepare_outdir(outdir, force=force)
     current = out / "round-0" / "scene.phys"
     current.parent.mkdir(parents=True, exist_ok=True)
     _copy_scene(scene_path, current)
-    rounds: list[Round] = []
-    change: dict = {"action": None, "added": None, "replaced": None}
-    start: dict = {}  # where the first chain of a round's fit starts (see below)
-    # effects the loop may swap or drop, each with the scene's effects when last examined
-    revisable = {parse(k).key: (parse(k), None) for k in revise}
+    loop = _Loop(out, scene_path, dict(backend=backend, chains=chains, warmup=warmup,
+                                       samples=samples, seed=seed, progress=progress), echo,
+                 revisable={parse(k).key: (parse(k), None) for k in revise})
     for k in range(max_rounds + 1):
-        rdir = current.parent
-        model = Model(load(current))
-        echo(f"round {k}: fitting {current} ({backend}, {chains} chains)")
-        idata = fit_with_fallback(model, backend, chains=chains, warmup=warmup, samples=samples,
-                                  seed=seed, outdir=rdir / "fit", force=True, progress=progress,
-                                  start=start_setting(start))
-        if "fit_note" in idata.attrs:
-            echo(f"round {k}: {idata.attrs['fit_note']}")
-        report = check_model(model, idata, outdir=rdir / "check")
-        now = judge(model, idata, report)
-        z = "n/a" if now.log_z is None else f"{now.log_z:.1f}"
-        echo(f"round {k}: residual RMS {report.rms_sigma:.2f}σ, ELPD {now.elpd:.1f}, log Z {z}")
-        caveat = loo_reliability(now.loo)
-        if caveat:
-            echo(f"  note: {caveat}")
-        for line in report.text().splitlines()[1:]:
-            echo("  " + line)
-
-        def record(verdict: str) -> None:
-            rounds.append(Round(k, current, float(report.rms_sigma), now.elpd, change["added"],
-                                verdict, change["action"], change["replaced"], now.log_z,
-                                bool(report.consistent)))
-
-        effects = _effects(model.scene)
-        due = [c for c, seen in revisable.values() if seen != effects]
-        if due and k < max_rounds:
-            echo(f"round {k}: re-examining {', '.join(_name(c) for c in due)} given the effects now present")
-            act, _ = reexamine(now, due, echo)
-            for c in due:
-                if c.key in revisable:
-                    revisable[c.key] = (c, effects)
-            if act is not None:
-                what = (f"swapped {_name(act.removed)} for {_name(act.added)}" if act.added
-                        else f"dropped {_name(act.removed)}")
-                record(f"{what} ({act.comparison.text()})")
-                echo(f"round {k}: {what}")
-                revisable.pop(act.removed.key, None)
-                change = {"action": act.kind, "replaced": _ref(act.removed),
-                          "added": _ref(act.added) if act.added else None}
-                start = point_estimate(act.judged.model, act.judged.idata)
-                current = _write_round(out, k + 1, act.text, scene_path)
-                if act.added:  # examined just now, against the same other effects
-                    revisable[act.added.key] = (act.added, _effects(load(current)))
-                continue
-        if report.consistent or k == max_rounds:
-            record("residuals consistent with the noise (runs, autocorrelation, windows and trend "
-                   "tests at the noise level)" if report.consistent else "stopped: --max-rounds reached")
+        current = _round(loop, k, current, k == max_rounds, confirm_top)
+        if current is None:
             break
-        diag = diagnose(model, idata, confirm_top=max(confirm_top, 1), outdir=rdir / "diagnosis",
-                        check_report=report, echo=echo)
-        echo(f"round {k}: {diag.verdict}")
-        echo(diag.table())
-        if diag.winner is None:
-            record("stopped: no addition, swap or drop improves the evidence; " + diag.verdict)
-            break
-        record(diag.verdict)
-        w = diag.winner
-        change = {"action": "added", "added": {"effect": w.effect, "target": w.target}, "replaced": None}
-        # the next round starts where the diagnosis's refit ended: this round's fit and the
-        # added strength's fitted median (a start from the prior can settle in a poor basin of
-        # a contact scene: billiards' second round ended at 7.85σ where the refit had 0.97σ)
-        start = {**point_estimate(model, idata),
-                 **w.fitted.get("values", {w.fitted["name"]: w.fitted["median"]})}
-        cand = next(c for c in physics_candidates(model.scene) + sensor_candidates(model.scene)
-                    if c.key == f"{w.effect}@{w.target}")
-        current = _write_round(out, k + 1, with_effect(model.scene, cand), scene_path)
-        # chosen against these effects; a group with a strength per joint is one effect per
-        # joint from now on (each may be swapped or dropped on its own), a shared one stays one
-        for part in ([cand] if cand.shared else cand.parts()) if cand.kind == "effect" else ():
-            revisable[part.key] = (part, _effects(load(current)))
-        echo(f"round {k}: added `{w.snippet.strip()}` -> {current}")
-    _write_summary(out, rounds)
-    return rounds
+    _write_summary(out, loop.rounds)
+    return loop.rounds
 
 
-def _check_revisable(scene, cands) -> None:
+def _round(loop: _Loop, k: int, current: Path, last: bool, confirm_top: int) -> Path | None:
+    """Round ``k`` on the scene file ``current``: fit, check, re-examine, diagnose; the next
+    round's scene file, or None when the loop stops."""
+    draft = Draft.read(current)  # the round's one parse
+    model = Model(draft.scene)
+    now = _fit(loop, k, current, model)
+    effects = _effects(draft.scene)
+    due = [c for c, seen in loop.revisable.values() if seen != effects]
+    if due and not last:
+        nxt = _reexamine(loop, k, current, draft, now, due, effects)
+        if nxt is not None:
+            return nxt
+    if now.report.consistent or last:
+        _record(loop, k, current, now, "residuals consistent with the noise (runs, autocorrelation, "
+                "windows and trend tests at the noise level)" if now.report.consistent
+                else "stopped: --max-rounds reached")
+        return None
+    diag = diagnose(model, now.idata, confirm_top=max(confirm_top, 1),
+                    outdir=current.parent / "diagnosis", check_report=now.report, echo=loop.echo,
+                    draft=draft)
+    loop.echo(f"round {k}: {diag.verdict}")
+    loop.echo(diag.table())
+    if diag.winner is None:
+        _record(loop, k, current, now, "stopped: no addition, swap or drop improves the evidence; "
+                + diag.verdict)
+        return None
+    _record(loop, k, current, now, diag.verdict)
+    loop.kept = (model, now, diag)
+    return _add_winner(loop, k, draft, model, now, diag.winner)
+
+
+def _fit(loop: _Loop, k: int, current: Path, model):
+    """The round's fit (from ``loop.start``), its check report and its evidence (``judge``)."""
+    rdir = current.parent
+    loop.echo(f"round {k}: fitting {current} ({loop.fit['backend']}, {loop.fit['chains']} chains)")
+    idata = fit_with_fallback(model, **loop.fit, outdir=rdir / "fit", force=True,
+                              start=start_setting(loop.start), quality=fit_quality)
+    if "fit_note" in idata.attrs:
+        loop.echo(f"round {k}: {idata.attrs['fit_note']}")
+    report = check_model(model, idata, outdir=rdir / "check")
+    now = judge(model, idata, report)
+    z = "n/a" if now.log_z is None else f"{now.log_z:.1f}"
+    loop.echo(f"round {k}: residual RMS {report.rms_sigma:.2f}σ, ELPD {now.elpd:.1f}, log Z {z}")
+    caveat = loo_reliability(now.loo)
+    if caveat:
+        loop.echo(f"  note: {caveat}")
+    for line in report.text().splitlines()[1:]:
+        loop.echo("  " + line)
+    return now
+
+
+def _record(loop: _Loop, k: int, current: Path, now, verdict: str) -> None:
+    ch = loop.change
+    loop.rounds.append(Round(k, current, float(now.report.rms_sigma), now.elpd, ch["added"],
+                             verdict, ch["action"], ch["replaced"], now.log_z,
+                             bool(now.report.consistent)))
+
+
+def _reexamine(loop: _Loop, k: int, current: Path, draft: Draft, now, due, effects) -> Path | None:
+    """Re-examine ``due`` given the effects now present; the next round's file where a swap or
+    a drop wins, else None."""
+    loop.echo(f"round {k}: re-examining {', '.join(_name(c) for c in due)} given the effects now present")
+    act, _ = reexamine(now, draft, due, loop.echo)
+    for c in due:
+        if c.key in loop.revisable:
+            loop.revisable[c.key] = (c, effects)
+    if act is None:
+        return None
+    what = (f"swapped {_name(act.removed)} for {_name(act.added)}" if act.added
+            else f"dropped {_name(act.removed)}")
+    _record(loop, k, current, now, f"{what} ({act.comparison.text()})")
+    loop.echo(f"round {k}: {what}")
+    loop.revisable.pop(act.removed.key, None)
+    loop.change = {"action": act.kind, "replaced": _ref(act.removed),
+                   "added": _ref(act.added) if act.added else None}
+    loop.start = point_estimate(act.judged.model, act.judged.idata)
+    loop.kept = (now, act)  # the next round's scene is act's: its compiled program is reused
+    nxt = _write_round(loop.out, k + 1, act.draft.text(), loop.user_scene)
+    if act.added:  # examined just now, against the same other effects
+        loop.revisable[act.added.key] = (act.added, _effects(act.draft.scene))
+    return nxt
+
+
+def _add_winner(loop: _Loop, k: int, draft: Draft, model, now, w) -> Path:
+    """Write the next round's scene: this one with the diagnosis's winner ``w`` added (its
+    refit's scene), printed here once; the next fit starts where the refit ended."""
+    cand: Candidate = w.candidate
+    loop.change = {"action": "added", "added": {"effect": w.effect, "target": w.target},
+                   "replaced": None}
+    # the next round starts where the diagnosis's refit ended: this round's fit and the
+    # added strength's fitted median (a start from the prior can settle in a poor basin of
+    # a contact scene: billiards' second round ended at 7.85σ where the refit had 0.97σ)
+    loop.start = {**point_estimate(model, now.idata),
+                  **w.fitted.get("values", {w.fitted["name"]: w.fitted["median"]})}
+    new = w.refit.draft if w.refit is not None else draft.with_candidate(cand)
+    nxt = _write_round(loop.out, k + 1, new.text(), loop.user_scene)
+    # chosen against these effects; a group with a strength per joint is one effect per
+    # joint from now on (each may be swapped or dropped on its own), a shared one stays one
+    for part in ([cand] if cand.shared else cand.parts()) if cand.kind == "effect" else ():
+        loop.revisable[part.key] = (part, _effects(new.scene))
+    loop.echo(f"round {k}: added `{w.snippet.strip()}` -> {nxt}")
+    return nxt
+
+
+def _check_revisable(draft: Draft, cands) -> None:
     """A UsageError naming a ``--revise`` effect the scene does not have."""
-    from ..errors import PhysError, UsageError
-    from .edits import without_effect
-
     for c in cands:
         try:
-            without_effect(scene, c)
+            draft.remove(c)
         except (PhysError, KeyError, AttributeError):
             raise UsageError(f"--revise {c.key}: the scene has no effect {c.name} on "
                              f"{','.join(c.target)}", hint="give EFFECT@TARGET of an effect in "
@@ -208,10 +272,7 @@ def _cells(r: Round) -> tuple[str, ...]:
 
 def _html(out: Path, rounds: list[Round]) -> str:
     """refine.md's table as a page, with refine.png and links to each round's scene and check."""
-    from html import escape as e
-
-    from .report import html_page
-
+    e = escape
     rows = []
     for r in rounds:
         scene = Path(os.path.relpath(Path(r.scene).resolve(), out.resolve())).as_posix()
@@ -228,8 +289,6 @@ def _html(out: Path, rounds: list[Round]) -> str:
 
 
 def _plot(out: Path, rounds: list[Round]) -> None:
-    from matplotlib.figure import Figure
-
     fig = Figure(figsize=(6, 3.2))
     ax = fig.add_subplot(1, 2, 1)
     idx = [r.index for r in rounds]

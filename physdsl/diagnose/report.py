@@ -8,18 +8,16 @@ from __future__ import annotations
 import html
 import re
 from pathlib import Path
-from typing import TYPE_CHECKING, Sequence
+from typing import Sequence
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from ..io import atomic_path, write_json, write_text
+from .check import Finding, Report
 from .residuals import ObservableFit, Residuals, residuals
 from .windows import running_mean, smoothing_width
-
-if TYPE_CHECKING:
-    from .check import Finding, Report
 
 
 def slug(name: str) -> str:

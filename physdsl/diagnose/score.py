@@ -19,6 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.flatten_util import ravel_pytree
 from scipy import stats
+from scipy.special import gammaln
 
 
 @dataclass(frozen=True)
@@ -107,8 +108,6 @@ def chi2_logsf(t: float, k: int) -> float:
     v = float(stats.chi2.logsf(t, k))
     if np.isfinite(v):
         return v
-    from scipy.special import gammaln
-
     a, x = k / 2.0, t / 2.0
     return float((a - 1) * np.log(x) - x - gammaln(a) + np.log1p((a - 1) / x))
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..syntax import edit
+from ..expr import constant_value, is_constant
 from .candidates import Candidate
 
 OFFSET_SIGMAS = 20.0  # offset prior sd in noise sigmas
@@ -28,8 +28,6 @@ def prior_text(scene, cand: Candidate) -> str:
     if cand.name == "delay":
         dt = float(np.median(np.diff(obs.times))) if len(obs.times) > 1 else 0.01
         return f"~ normal(0, {DELAY_SAMPLES * dt:.6g})"
-    from ..expr import constant_value, is_constant
-
     sigma = constant_value(obs.noise.scale) if is_constant(obs.noise.scale) else np.asarray(1.0)
     sd = OFFSET_SIGMAS * np.broadcast_to(np.asarray(sigma, float), (obs.dim,))
     if np.allclose(sd, sd[0]):
@@ -38,11 +36,10 @@ def prior_text(scene, cand: Candidate) -> str:
     return f"~ normal(({', '.join('0' for _ in sd)}), ({vec}))"
 
 
-def with_sensor(scene, cand: Candidate, text: str | None = None) -> str:
-    """The scene's text with the sensor term of ``cand`` in its observation's block."""
-    text = scene.source if text is None else text
-    return edit.replace_value(text, f"{cand.target[0]}.{cand.name}", prior_text(scene, cand),
-                              filename=str(scene.path or "<string>"))
+def sensor_term(scene, cand: Candidate) -> tuple[str, str]:
+    """(path, value text) of the term ``cand`` writes into its observation's block
+    (``syntax.edit.value_set``): ``hinge.angle.offset``, ``~ normal(0, 0.02)``."""
+    return f"{cand.target[0]}.{cand.name}", prior_text(scene, cand)
 
 
 def unknown_key(cand: Candidate) -> str:

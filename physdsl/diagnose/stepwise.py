@@ -8,8 +8,11 @@ quadratic drag, buoyancy, Magnus; on a joint: viscous damping, Coulomb friction,
 spring; on a contact pair: sliding friction and rolling resistance), and the same for a group
 or material-level target (``shoulder+elbow``, ``table,*``).
 
+Each refit's scene is the current one edited as a value (``edits.Draft``): nothing is parsed,
+and the winner's text is printed only when ``refine`` writes it.
+
 Decisions (``swap_wins``, ``drop_wins``) read two numbers of the scenes' fits: ΔELPD
-(PSIS-LOO, with the tie margin of ``rank.tie_margin``: twice the standard error of the summed
+(PSIS-LOO, with the tie margin of ``loo.tie_margin``: twice the standard error of the summed
 pointwise differences, at least 4) and the Laplace log evidence Δlog Z (``evidence.py``),
 which counts complexity. A swap needs ΔELPD beyond the margin with the evidence not against it,
 or, within the margin, strong evidence (Bayes factor > 10). A drop needs ΔELPD within the margin
@@ -25,10 +28,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..compile import Model
+from ..infer.fit import quick_fit
 from .candidates import Candidate, physics_candidates
-from .edits import load_text, with_effect, without_effect
-
-STRONG = math.log(10.0)  # Δlog Z that decides a swap on its own (Jeffreys: strong evidence)
+from .confirm import REFIT_FAILURES
+from .edits import Draft
+from .evidence import STRONG, laplace_log_evidence
+from .loo import combined_loo, tie_margin
+from .workflow import check_model, point_estimate
 
 
 @dataclass
@@ -48,10 +54,6 @@ class Judged:
 
 def judge(model, idata, report=None) -> Judged:
     """Score a fitted scene (its check, its PSIS-LOO and its Laplace evidence)."""
-    from .evidence import laplace_log_evidence
-    from .rank import combined_loo
-    from .workflow import check_model
-
     report = report or check_model(model, idata)
     return Judged(model, idata, report, combined_loo(idata), laplace_log_evidence(model, idata))
 
@@ -70,11 +72,9 @@ class Comparison:
 
 
 def compare(new: Judged, old: Judged) -> Comparison:
-    from .rank import ELPD_TIE, _sum_se
-
-    diff = np.asarray(new.loo.loo_i) - np.asarray(old.loo.loo_i)
+    new_points, old_points = np.asarray(new.loo.loo_i), np.asarray(old.loo.loo_i)
     dz = None if new.log_z is None or old.log_z is None else new.log_z - old.log_z
-    return Comparison(float(diff.sum()), max(2.0 * _sum_se(diff), ELPD_TIE), dz)
+    return Comparison(float((new_points - old_points).sum()), tie_margin(new_points, old_points), dz)
 
 
 def swap_wins(c: Comparison) -> bool:
@@ -91,14 +91,15 @@ def drop_wins(c: Comparison) -> bool:
     return c.d_elpd > -c.margin and (c.d_log_z is None or c.d_log_z > 0)
 
 
-def alternatives(scene, cand: Candidate) -> list[Candidate]:
-    """Other library laws at ``cand``'s target, as candidates of the scene without ``cand``:
-    a one-sided scalar strength of the same sign and off value (see the module's docstring)."""
-    lib = scene.effect_library
+def alternatives(draft: Draft, cand: Candidate, bare: Draft | None = None) -> list[Candidate]:
+    """Other library laws at ``cand``'s target, as candidates of the scene without ``cand``
+    (``bare``, made here when not given): a one-sided scalar strength of the same sign and off
+    value (see the module's docstring)."""
+    lib = draft.scene.effect_library
     mine = lib[cand.name].strength
-    bare = load_text(scene, without_effect(scene, cand))
+    bare = bare or draft.without_candidate(cand)
     out = []
-    for c in physics_candidates(bare):
+    for c in physics_candidates(bare.scene):
         s = lib[c.name].strength
         if (c.kind == "effect" and c.target == cand.target and c.name != cand.name
                 and s.sign and s.sign == mine.sign and s.off == mine.off
@@ -114,34 +115,31 @@ class Action:
     kind: str  # "swapped" | "dropped"
     removed: Candidate
     added: Candidate | None
-    text: str  # the new scene's source
+    draft: Draft  # the new scene (its text printed when refine writes it)
     judged: Judged
     comparison: Comparison
     tried: list = field(default_factory=list)  # (description, Comparison or error) of each refit
 
 
-def reexamine(current: Judged, revisable: list[Candidate], echo=None) -> tuple[Action | None, list]:
-    """Refit each of ``revisable`` (effects in ``current``'s scene) dropped and swapped for each
-    alternative, given the rest of the scene; return the best winning action (by Δlog Z, then
-    a drop before a swap, then ΔELPD) or None, and the lines describing every refit."""
-    from .rank import REFIT_FAILURES, quick_fit
-    from .workflow import point_estimate
-
+def reexamine(current: Judged, draft: Draft, revisable: list[Candidate], echo=None
+              ) -> tuple[Action | None, list]:
+    """Refit each of ``revisable`` (effects in ``current``'s scene, ``draft``) dropped and
+    swapped for each alternative, given the rest of the scene; return the best winning action
+    (by Δlog Z, then a drop before a swap, then ΔELPD) or None, and the lines describing every
+    refit."""
     echo = echo or (lambda line: None)
-    scene = current.model.scene
     start = point_estimate(current.model, current.idata)
     wins, lines = [], []
     for cand in revisable:
-        bare_text = without_effect(scene, cand)
-        bare = load_text(scene, bare_text)
-        options = [(None, bare_text)] + [(alt, with_effect(bare, alt, bare_text))
-                                        for alt in alternatives(scene, cand)]
-        for alt, text in options:
+        bare = draft.without_candidate(cand)
+        options = [(None, bare.module)] + [(alt, bare.add(alt)) for alt in alternatives(draft, cand, bare)]
+        for alt, module in options:
             what = (f"drop {_name(cand)}" if alt is None else f"swap {_name(cand)} → {_name(alt)}")
             echo(f"  refit: {what}")
             t0 = time.perf_counter()
             try:
-                model = Model(load_text(scene, text))
+                new_draft = bare if alt is None else bare.resolved(module)
+                model = Model(new_draft.scene)
                 begin = {k: v for k, v in start.items() if k in set(model.unknown_names)}
                 new = judge(model, quick_fit(model, start=begin))
             except REFIT_FAILURES as err:
@@ -154,7 +152,7 @@ def reexamine(current: Judged, revisable: list[Candidate], echo=None) -> tuple[A
                          f"{' — wins' if ok else ''} ({time.perf_counter() - t0:.0f} s)")
             echo(f"    {lines[-1]}")
             if ok:
-                wins.append(Action("dropped" if alt is None else "swapped", cand, alt, text, new, c))
+                wins.append(Action("dropped" if alt is None else "swapped", cand, alt, new_draft, new, c))
     if not wins:
         return None, lines
     # most evidence first; where it is n/a, a drop before a swap (fewer parameters), then ΔELPD

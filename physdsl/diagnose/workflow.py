@@ -8,9 +8,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..compile import PRED_PREFIX
+from ..errors import UsageError
 from ..expr import references
+from ..infer import posterior_data
 from ..observe import trajectory
 from .check import Report, check
+from .report import write_report
 from .residuals import ObservableFit
 
 MAX_DRAWS = 200
@@ -18,8 +21,6 @@ MAX_DRAWS = 200
 
 def _require_unknowns(model, posterior) -> None:
     """A UsageError unless ``posterior`` holds draws of every unknown of ``model``."""
-    from ..errors import UsageError
-
     missing = [u.name for u in model.unknowns if u.name not in posterior]
     if missing:
         raise UsageError(f"the posterior has no draws of {', '.join(missing)}",
@@ -28,15 +29,8 @@ def _require_unknowns(model, posterior) -> None:
 
 def posterior_draws(model, idata, max_draws: int = MAX_DRAWS) -> dict[str, np.ndarray]:
     """Up to ``max_draws`` joint draws of every unknown: name -> (S, *shape), evenly thinned."""
-    post = idata.posterior
-    _require_unknowns(model, post)
-    out = {}
-    for u in model.unknowns:
-        arr = np.asarray(post[u.name].values)
-        arr = arr.reshape(-1, *arr.shape[2:])
-        step = max(1, arr.shape[0] // max_draws)
-        out[u.name] = arr[::step][:max_draws]
-    return out
+    _require_unknowns(model, idata.posterior)
+    return posterior_data.posterior_draws(idata, [u.name for u in model.unknowns], max_draws)
 
 
 def point_estimate(model, idata) -> dict[str, np.ndarray]:
@@ -49,8 +43,6 @@ def point_estimate(model, idata) -> dict[str, np.ndarray]:
     draws of an approximate posterior (a Laplace covariance that is nearly singular where the
     data cannot see a direction) cannot move it.
     """
-    from ..errors import UsageError
-
     ll = getattr(idata, "log_likelihood", None)
     if ll is None or not ll.data_vars:
         raise UsageError("the posterior has no pointwise log-likelihood",
@@ -61,25 +53,6 @@ def point_estimate(model, idata) -> dict[str, np.ndarray]:
     chain, draw = np.unravel_index(int(np.argmax(total)), total.shape)
     _require_unknowns(model, idata.posterior)
     return {u.name: np.asarray(idata.posterior[u.name].values[chain, draw]) for u in model.unknowns}
-
-
-def wider_than_prior(model, idata, factor: float = 10.0) -> list[str]:
-    """Unknowns whose posterior draws spread (interquartile range) more than ``factor`` times
-    wider than their prior's: no posterior does that (data narrow a prior, they do not widen
-    it), so it marks a failed approximation, e.g. a Laplace covariance whose curvature was
-    floored where the likelihood has a kink."""
-    import jax
-
-    prior = model.sample_prior(jax.random.PRNGKey(0), 400)
-    out = []
-    for u in model.unknowns:
-        post = np.asarray(idata.posterior[u.name].values)
-        post = post.reshape(-1, *post.shape[2:])
-        width = np.subtract(*np.quantile(post, [0.75, 0.25], axis=0))
-        prior_width = np.subtract(*np.quantile(np.asarray(prior[u.name]), [0.75, 0.25], axis=0))
-        if np.any(width > factor * prior_width + 1e-300):
-            out.append(u.name)
-    return out
 
 
 def noise_unknowns(model) -> set[str]:
@@ -155,7 +128,5 @@ def check_model(model, idata, outdir: Path | None = None, windows: int = 4) -> R
     fits = observable_fits(model, idata)
     report = check(fits, windows=windows)
     if outdir is not None:
-        from .report import write_report
-
         write_report(report, fits, Path(outdir))
     return report

@@ -7,11 +7,22 @@ a caret under the offending part), so they read like errors in a scene file.
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
+import jax
 import numpy as np
 
-from ..errors import PhysError, PhysNameError, PhysTypeError, PhysUnitError, Span, UsageError
+from ..errors import (InferenceError, PhysError, PhysNameError, PhysTypeError, PhysUnitError,
+                      Span, UsageError)
+from ..expr import evaluate, is_constant
+from ..syntax import ast
+from ..syntax.dists import constraint_words, find, satisfies
+from ..syntax.parser import parse_field
+from ..syntax.resolve import Resolver, close
+from ..syntax.units import parse_unit
+from .base import value_and_grad_fn
+from .problem import model_problem, start_position
 
 SOURCE = "--init"
 
@@ -28,8 +39,6 @@ def parse_init(text: str, unknowns) -> dict[str, np.ndarray]:
         name = name_raw.strip()
         n0 = start + len(name_raw) - len(name_raw.lstrip())
         if name not in by_name:
-            from ..syntax.resolve import close
-
             raise _error(PhysNameError, text, n0, n0 + max(len(name), 1),
                          f"'{name}' is not an unknown of the scene{close(name, by_name)}",
                          "unknowns: " + ", ".join(by_name))
@@ -64,15 +73,6 @@ def with_init(model, settings, init):
     ``start_values``), after checking that the log density is finite there. The other chains
     (or starts of the multistart) are unchanged, so the optimisation from the given values
     competes with them and the best basin wins."""
-    from dataclasses import replace
-
-    import jax
-
-    from ..diagnose.rank import start_setting
-    from ..errors import InferenceError
-    from .base import value_and_grad_fn
-    from .problem import model_problem, start_position
-
     values = start_values(init, model.unknowns)
     problem = model_problem(model)
     x = start_position(problem, jax.random.PRNGKey(settings.seed), values)
@@ -85,6 +85,12 @@ def with_init(model, settings, init):
     start = dict(settings.start)
     start.update(dict(start_setting(values)))
     return replace(settings, start=tuple(start.items()))
+
+
+def start_setting(values: dict) -> tuple:
+    """Constrained values by name as the ``start`` setting of a fit (hashable plain numbers:
+    it enters the run's fingerprint)."""
+    return tuple((k, np.asarray(v, dtype=float).tolist()) for k, v in values.items())
 
 
 def _items(text: str):
@@ -110,12 +116,6 @@ def _items(text: str):
 
 def _value(text: str, offset: int, value: str, unknown) -> np.ndarray:
     """The SI value of ``value`` (at ``offset`` in ``text``) for ``unknown``, checked."""
-    from ..expr import evaluate, is_constant
-    from ..syntax import ast
-    from ..syntax.parser import parse_field
-    from ..syntax.resolve import Resolver
-    from ..syntax.units import parse_unit
-
     lead = len(value) - len(value.lstrip())
     col = offset + lead  # 0-based column of the value in ``text``
     body = value.strip()
@@ -152,8 +152,6 @@ def _value(text: str, offset: int, value: str, unknown) -> np.ndarray:
     x = np.asarray(evaluate(r.expr, {}), dtype=float)
     support = _support(unknown)
     if support is not None:
-        from ..syntax.dists import constraint_words, satisfies
-
         if satisfies(support, x) is False:
             raise PhysTypeError(f"{_fmt(x)}{_unit(unknown)} is outside the support of "
                                 f"'{unknown.name}' ({constraint_words(support)})", span,
@@ -163,9 +161,6 @@ def _value(text: str, offset: int, value: str, unknown) -> np.ndarray:
 
 def _support(unknown):
     """The prior's support constraint where its arguments are constants, else None."""
-    from ..expr import evaluate, is_constant
-    from ..syntax.dists import find
-
     obj = find(unknown.prior.dist)
     args = list(unknown.prior.args) + [v for _, v in unknown.prior.kwargs]
     if obj is None or not all(is_constant(a) for a in args):
@@ -208,4 +203,4 @@ def _relocate(ex: PhysError, text: str, shift: int) -> PhysError:
     return ex
 
 
-__all__ = ["parse_init", "start_values", "with_init"]
+__all__ = ["parse_init", "start_setting", "start_values", "with_init"]

@@ -21,11 +21,15 @@ import jax
 import numpy as np
 
 from .. import io
+from ..compile import structure_key
 from ..errors import InferenceError, UsageError
 from .backends.map import LaplaceError
 from .base import Settings, get_backend
 from .blocks import Pacer
+from .init import with_init
 from .interrupt import Interrupted, critical, termination
+from .multistart import describe, search, start_points
+from .output import build_inference_data, save_run
 from .problem import make_problem, model_problem
 from .progress import Stages
 
@@ -36,9 +40,10 @@ CENTRE_KEY = 1 << 20  # fold_in(k_init, .) of the prior's centre (prior draws us
 
 def infer(model, backend: str = "nuts", settings: Settings | None = None, outdir=None,
           resume: bool = False, force: bool = False, progress: bool = True, positions=None,
-          init: dict | str | None = None, **overrides):
-    """Posterior over every unknown of ``model`` as arviz InferenceData (saved if ``outdir``,
-    with the fit's quality: ``output.fit_quality``).
+          init: dict | str | None = None, quality=None, **overrides):
+    """Posterior over every unknown of ``model`` as arviz InferenceData (saved if ``outdir``;
+    ``quality``: a function (model, idata) -> dict judging the fit against the data, e.g.
+    ``diagnose.quality.fit_quality``, whose result run.json keeps as ``fit_quality``).
 
     ``positions`` (chains, dim): flat unconstrained starts that replace the initialisation
     (prior draws and their optimisation), e.g. modes found once and shared by two backends.
@@ -48,15 +53,14 @@ def infer(model, backend: str = "nuts", settings: Settings | None = None, outdir
     leaving a checkpoint that ``resume=True`` continues exactly."""
     settings = replace(settings or Settings(), **overrides)
     if init:
-        from .init import with_init
-
         if positions is not None:
             raise UsageError("start values (init) and start positions (positions) both given",
                              hint="positions replace the whole initialisation: give one of them")
         settings = with_init(model, settings, init)
     with termination():
         try:
-            return _run(model, backend, settings, outdir, resume, force, progress, positions)
+            return _run(model, backend, settings, outdir, resume, force, progress, positions,
+                        quality)
         except Interrupted as ex:
             if outdir is not None and (Path(outdir) / CHECKPOINT).exists():
                 ex.note = (f"the checkpoint in {outdir} keeps the draws so far: continue with "
@@ -64,7 +68,7 @@ def infer(model, backend: str = "nuts", settings: Settings | None = None, outdir
             raise
 
 
-def _run(model, backend, settings, outdir, resume, force, progress, positions):
+def _run(model, backend, settings, outdir, resume, force, progress, positions, quality):
     algo = get_backend(backend)
     out = io.prepare_outdir(outdir, force=force, resume=resume) if outdir else None
     stages = Stages(enabled=progress)
@@ -88,8 +92,6 @@ def _run(model, backend, settings, outdir, resume, force, progress, positions):
                                         st.say(f"optimising from start {i + 1} ({label})"))
         st.done(f"{problem.dim} unconstrained dimensions, {settings.chains} chains")
     if basins and progress:
-        from .multistart import describe
-
         print("\n".join(describe(basins)), file=sys.stderr, flush=True)
 
     if ckpt is None:
@@ -98,7 +100,7 @@ def _run(model, backend, settings, outdir, resume, force, progress, positions):
                                                 stages)
         except LaplaceError as err:
             if out is not None and err.mode is not None:
-                _keep_mode(out, model, problem, err, backend, settings, stages)
+                _keep_mode(out, model, problem, err, backend, settings, stages, quality)
             raise
         with critical():
             ckpt = {"fingerprint": fingerprint, "states": _np(states), "params": _np(params),
@@ -126,8 +128,6 @@ def _run(model, backend, settings, outdir, resume, force, progress, positions):
 
     flat = np.concatenate(ckpt["draws"], axis=1)  # (chains, samples, dim)
     stats = {k: np.concatenate([s[k] for s in ckpt["stats"]], axis=1) for k in ckpt["stats"][0]}
-    from .output import build_inference_data
-
     with stages.stage("predictions", total=flat.shape[0] * flat.shape[1]) as st:
         idata = build_inference_data(model, problem, flat, stats, settings, on_chunk=st.advance)
     if basins:
@@ -136,10 +136,7 @@ def _run(model, backend, settings, outdir, resume, force, progress, positions):
         raise InferenceError("sampler produced non-finite draws",
                              hint="try --backend rmh or tighter priors")
     if out is not None:
-        from .output import save_run
-
-        quality = _fit_quality(model, idata, stages)
-        extra = {"fit_quality": quality, **({"basins": basins} if basins else {})}
+        extra = {**_fit_quality(quality, model, idata, stages), **({"basins": basins} if basins else {})}
         save_run(out, model, idata, backend, settings, extra=extra)
         if ckpt_path.exists():
             ckpt_path.unlink()
@@ -173,36 +170,35 @@ def _warmup(algo, problem, positions, key, settings, stages):
     return out
 
 
-def _fit_quality(model, idata, stages) -> dict:
-    """``output.fit_quality`` under a progress stage, kept in ``idata.attrs`` too."""
-    from .output import fit_quality
-
+def _fit_quality(quality, model, idata, stages) -> dict:
+    """``{"fit_quality": quality(model, idata)}`` under a progress stage, kept in
+    ``idata.attrs`` too; {} without ``quality``."""
+    if quality is None:
+        return {}
     with stages.stage("fit quality"):
         try:
-            q = fit_quality(model, idata)
+            q = quality(model, idata)
         except Exception as ex:  # noqa: BLE001 - a diagnostic must not lose a finished fit
             q = {"error": f"{type(ex).__name__}: {ex}", "warnings": []}
     idata.attrs["fit_quality"] = json.dumps(q)
-    return q
+    return {"fit_quality": q}
 
 
-def _keep_mode(out, model, problem, err, backend, settings, stages):
+def _keep_mode(out, model, problem, err, backend, settings, stages, quality):
     """Where MAP's Laplace step failed: write the mode (posterior.nc with the mode as a single
     draw, summary.csv, run.json marking ``laplace: failed`` with the flat directions) and say
     so in ``err`` (``err.idata``: the mode's InferenceData)."""
-    from .output import build_inference_data, save_run
-
     flat = np.asarray(err.mode, dtype=float)[None, None, :]
     with stages.stage("predictions", total=1) as st:
         idata = build_inference_data(model, problem, flat, {}, settings, on_chunk=st.advance)
     idata.attrs["laplace"] = "failed"
-    quality = _fit_quality(model, idata, stages)
+    judged = _fit_quality(quality, model, idata, stages)
     directions = [{"curvature": c, "components": [{"name": n, "weight": w} for n, w in comps]}
                   for c, comps in err.directions]
     save_run(out, model, idata, backend, settings,
              extra={"laplace": "failed", "laplace_error": err.message,
                     "laplace_directions": directions, "log_density_at_mode": err.log_density,
-                    "fit_quality": quality})
+                    **judged})
     err.idata = idata
     err.message += (f". The mode is kept in {out} (posterior.nc holds it as a single draw, "
                     "summary.csv, run.json with laplace: failed)")
@@ -215,8 +211,6 @@ def starts(model, settings: Settings, optimise_steps: int, basins: list | None =
     (``multistart.start_points``); each optimised for ``optimise_steps`` when positive, the
     modes grouped into basins (appended to ``basins`` where given) and chains that end in a
     minor basin moved to the best mode (``multistart.search``). Random numbers as in ``infer``."""
-    from .multistart import search, start_points
-
     k_init = jax.random.split(jax.random.PRNGKey(settings.seed), 3)[0]
     problem, positions = make_problem(model, k_init, settings.chains, dict(settings.start))
     positions, labels = start_points(problem, positions, jax.random.fold_in(k_init, CENTRE_KEY),
@@ -230,12 +224,14 @@ def starts(model, settings: Settings, optimise_steps: int, basins: list | None =
 
 
 def run_fingerprint(model, backend: str, settings: Settings, positions=None) -> str:
-    """Hash of everything that determines the draws (scene text, data, backend, settings,
-    given start positions)."""
+    """Hash of everything that determines the draws (the scene's structure and text, data,
+    backend, settings, given start positions). The structure counts too: a scene edited as a
+    value (a diagnosis candidate) has no text."""
     h = hashlib.sha256()
     if positions is not None:
         h.update(np.ascontiguousarray(np.asarray(positions, dtype=float)).tobytes())
     h.update(model.scene.source.encode())
+    h.update(structure_key(model.scene).encode())
     for o in model.scene.observations:
         h.update(np.ascontiguousarray(o.values).tobytes())
     h.update(b"draw j from fold_in(key, j)")  # checkpoints of the per-block keys differ

@@ -61,7 +61,7 @@ def fit(model, seed: int = 0):
     """The fast posterior used throughout: MAP from two starts with a Laplace approximation,
     random-walk Metropolis where the Laplace step fails (``fit_with_fallback``, as diagnose's
     own refits: a contact scene's start can end on a kink, e.g. a resting ball's vertical speed)."""
-    from physdsl.diagnose.rank import fit_with_fallback
+    from physdsl.infer.fit import fit_with_fallback
 
     return fit_with_fallback(model, "map", chains=2, warmup=200, samples=200, seed=seed,
                              progress=False)
@@ -291,7 +291,7 @@ EQUIVALENT = {
 
 def truth_scene(folder: Path, case: Case):
     """The naive scene of ``case`` with the hidden effect added (strength unknown), loaded."""
-    from physdsl.diagnose.rank import with_effect
+    from physdsl.diagnose.edits import with_effect
 
     naive = load_scene(folder, case.naive, "naive.phys")
     return load_scene(folder, with_effect(naive, candidate(naive, case)), "truth.phys")

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from physdsl.diagnose.check import ObservableFit, Report, check, write_report
+from physdsl.diagnose.check import ObservableFit, Report, check
+from physdsl.diagnose.report import write_report
 
 G = 9.81
 

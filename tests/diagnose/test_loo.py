@@ -4,7 +4,7 @@ import warnings
 import numpy as np
 import pytest
 
-from physdsl.diagnose.rank import combined_loo, loo_reliability
+from physdsl.diagnose.loo import combined_loo, loo_reliability
 from physdsl.infer import posterior_data
 
 

@@ -70,23 +70,24 @@ def test_material_candidate_is_one_param_and_one_effect_per_pair(tmp_path):
     """Printed with the language's printer: ``param floor_contact_friction ~ prior`` and the
     effect on each pair with that param as its coefficient; the scene gains ONE unknown."""
     from physdsl.compile import Model
-    from physdsl.diagnose.rank import _load_text, unknown_key, with_effect
+    from physdsl.diagnose.edits import load_text, unknown_key, with_effect
 
     scene = _scene(tmp_path)
     cand = _material(scene, "contact_friction")
-    new = _load_text(scene, with_effect(scene, cand))
+    new = load_text(scene, with_effect(scene, cand))
     added = {u.name for u in Model(new).unknowns} - {u.name for u in Model(scene).unknowns}
     assert added == {"floor_contact_friction"} == {unknown_key(scene, cand)}
     uses = [e for e in new.effects if e.effect == "contact_friction"]
     assert sorted(e.target for e in uses) == [("floor", "a"), ("floor", "b")]
     # the shared param's name is taken: the candidate cannot be written, and says so
-    from physdsl.diagnose.rank import _expressible
+    from physdsl.diagnose.edits import Draft
+    from physdsl.diagnose.screening import expressible
     from physdsl.errors import PhysNameError
 
     taken = _scene(tmp_path, "  param floor_contact_friction: 0.3", "taken.phys")
     with pytest.raises(PhysNameError):
         with_effect(taken, _material(taken, "contact_friction"))
-    assert not _expressible(taken, _material(taken, "contact_friction"))
+    assert not expressible(Draft.of(taken), _material(taken, "contact_friction"))
 
 
 def test_add_effect_cli_takes_a_material_target(tmp_path, cli):
@@ -104,7 +105,8 @@ def test_add_effect_cli_takes_a_material_target(tmp_path, cli):
 def test_a_material_twin_represents_its_per_pair_twin():
     """Where one pair's column is the material candidate's (the other pair cannot be seen),
     the material candidate represents the group; the others follow it with its rank."""
-    from physdsl.diagnose.rank import Ranked, mark_twins, tie_twins
+    from physdsl.diagnose.diagnosis import Ranked
+    from physdsl.diagnose.ordering import mark_twins, tie_twins
 
     rows = [Ranked(0, "effect", e, t, s, 0.1, 1) for e, t, s in
             [("contact_friction", "floor,a", 9.0), ("contact_friction", "floor,*", 8.9),
@@ -122,7 +124,7 @@ def test_material_score_column_is_the_sum_of_the_pair_columns(tmp_path, monkeypa
     """score_all tests the material candidate on the sum of its pairs' columns (the derivative
     with respect to one shared coefficient), projected like every other column."""
     from physdsl.compile import Model
-    from physdsl.diagnose import rank
+    from physdsl.diagnose import screening
     from physdsl.diagnose.score import project_out, score_test
 
     model = Model(_scene(tmp_path))
@@ -138,11 +140,11 @@ def test_material_score_column_is_the_sum_of_the_pair_columns(tmp_path, monkeypa
                                                for k in tested)))
         return r, J_theta, got["J_psi"], {}
 
-    monkeypatch.setattr(rank, "jacobian", fake_jacobian)
-    monkeypatch.setattr(rank, "sensor_candidates", lambda scene: [])
-    monkeypatch.setattr(rank, "point_estimate",
+    monkeypatch.setattr(screening, "jacobian", fake_jacobian)
+    monkeypatch.setattr(screening, "sensor_candidates", lambda scene: [])
+    monkeypatch.setattr(screening, "point_estimate",
                         lambda m, idata: {"a.velocity": np.array([1.5, 0.0, 0.0])})
-    scores = {c.key: s for c, s in rank.score_all(model, None)}
+    scores = {c.key: s for c, s in screening.score_all(model, None)}
     assert not any(k.endswith(",*.coefficient") for k in got["tested"])  # not in the scene itself
     offset, cols = 0, {}
     for k in sorted(got["tested"]):
@@ -162,11 +164,12 @@ def shared_friction(tmp_path_factory):
     """Data of the two balls with one friction coefficient 0.15 on both floor pairs, and the
     score tests of the frictionless scene at the true values."""
     from physdsl.compile import Model
-    from physdsl.diagnose import rank
+    from physdsl.diagnose import screening
+    from physdsl.diagnose.edits import with_effect
 
     folder = tmp_path_factory.mktemp("material")
     truth = _scene(folder, name="placeholder.phys")
-    truth = load_scene(folder, rank.with_effect(truth, _material(truth, "contact_friction")),
+    truth = load_scene(folder, with_effect(truth, _material(truth, "contact_friction")),
                        "truth.phys")
     values = {"a.velocity": np.array([1.4, 0.1, 0.0]), "floor_contact_friction": np.asarray(0.15)}
     pred = Model(truth).predict(values)
@@ -177,9 +180,9 @@ def shared_friction(tmp_path_factory):
     model = Model(load_scene(folder, TWO_BALLS % "", "naive.phys"))
     at = {"a.velocity": values["a.velocity"]}
     mp = pytest.MonkeyPatch()
-    mp.setattr(rank, "point_estimate", lambda m, idata: {k: np.asarray(v) for k, v in at.items()})
+    mp.setattr(screening, "point_estimate", lambda m, idata: {k: np.asarray(v) for k, v in at.items()})
     try:
-        scored = rank.score_all(model, None)
+        scored = screening.score_all(model, None)
     finally:
         mp.undo()
     return model, at, {c.key: s for c, s in scored}
@@ -195,7 +198,8 @@ def test_shared_friction_outscores_each_pair_and_its_column_is_the_derivative(sh
     import jax.numpy as jnp
 
     from physdsl.compile import Model
-    from physdsl.diagnose.rank import _load_text, tested_value, with_effect
+    from physdsl.diagnose.edits import load_text, with_effect
+    from physdsl.diagnose.screening import tested_value
     from physdsl.diagnose.score import jacobian, project_out, score_test, standardized_residuals
 
     model, at, scores = shared_friction
@@ -204,7 +208,7 @@ def test_shared_friction_outscores_each_pair_and_its_column_is_the_derivative(sh
     for pair in ("floor,a", "floor,b"):
         assert scores[f"contact_friction@{pair}"].statistic < best.statistic
     scene = model.scene
-    shared = Model(_load_text(scene, with_effect(scene, _material(scene, "contact_friction"))))
+    shared = Model(load_text(scene, with_effect(scene, _material(scene, "contact_friction"))))
     mu0, h = tested_value(scene.effect_library["contact_friction"]), 1e-4
 
     def res(mu):
@@ -224,7 +228,7 @@ def test_a_strength_far_outside_its_prior_is_not_proposed(tmp_path):
     """A candidate whose one-step estimate lies > 1000 prior sds from off barely moves the
     predictions (rolling resistance on a nearly frictionless table); a plausible one passes."""
     from physdsl.diagnose.candidates import Candidate
-    from physdsl.diagnose.rank import IMPLAUSIBLE, prior_sd, prior_sds_needed
+    from physdsl.diagnose.screening import IMPLAUSIBLE, prior_sd, prior_sds_needed
     from physdsl.diagnose.score import ScoreResult
 
     scene = _scene(tmp_path)

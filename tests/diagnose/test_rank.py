@@ -2,7 +2,7 @@
 
 The naive scene (without the effect) is fitted; ``check`` must flag the misfit, the score
 tests must rank the true effect on the true target first among the physical candidates, and
-adding it (``rank.with_effect``) and refitting must bring the residuals to the noise with the
+adding it (``edits.with_effect``) and refitting must bring the residuals to the noise with the
 true strength inside its 90% interval. Fast cases: quadratic vs linear drag on a steep throw
 (speed 12 -> 3 -> 8 m/s, so |v| v and v differ in shape) and joint damping on a pendulum.
 """
@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from physdsl.compile import Model
-from physdsl.diagnose.rank import _load_text, unknown_key, with_effect
+from physdsl.diagnose.edits import load_text, unknown_key, with_effect
 from physdsl.diagnose.workflow import check_model
 
 from .conftest import candidate, fit, interval, physical_order
@@ -29,7 +29,7 @@ def _row(diag, key):
 def refit_with(f):
     """The naive scene of fitted case ``f`` with its true effect added, fitted and checked."""
     cand = candidate(f.model.scene, f.case)
-    new = Model(_load_text(f.model.scene, with_effect(f.model.scene, cand)))
+    new = Model(load_text(f.model.scene, with_effect(f.model.scene, cand)))
     idata = fit(new)
     return new, idata, check_model(new, idata), unknown_key(f.model.scene, cand)
 
@@ -114,21 +114,20 @@ def test_a_failing_refit_leaves_the_candidate_unconfirmed(quadratic, monkeypatch
     better ranked one is not refitted."""
     import copy
 
-    from physdsl.diagnose import rank
+    from physdsl.diagnose import confirm
 
     def failing_fit(model, seed=0, start=None):
         raise np.linalg.LinAlgError("Matrix is not positive definite")
 
-    monkeypatch.setattr(rank, "quick_fit", failing_fit)
+    monkeypatch.setattr(confirm, "quick_fit", failing_fit)
     d = quadratic.diagnosis
     rows = copy.deepcopy(d.ranking)
     physical = [r for r in rows if r.kind == "effect"]
     physical[1].same_as = f"{physical[0].effect}@{physical[0].target}"  # acts like the first
-    cands = {c.key: c for c in rank.physics_candidates(quadratic.model.scene)}
-    rank.confirm(quadratic.model, quadratic.idata, rows, cands, 2, d.rms_sigma)
+    confirm.confirm(quadratic.model, quadratic.idata, rows, 2, d.rms_sigma)
     tried = [r for r in rows if r.confirmed is not None]
     # the twin is skipped; nothing explained the misfit, so further candidates were refitted
-    assert tried == [physical[0]] + physical[2:2 + 1 + rank.EXTRA_REFITS]
+    assert tried == [physical[0]] + physical[2:2 + 1 + confirm.EXTRA_REFITS]
     for r in tried:
         assert r.confirmed is False and r.note.startswith("refit failed: Matrix is not positive")
 
@@ -138,22 +137,21 @@ def test_refits_stop_at_k_once_one_explains_the_misfit(quadratic, monkeypatch):
     check consistent)."""
     import copy
 
-    from physdsl.diagnose import rank
+    from physdsl.diagnose import confirm
 
     def refit(model, r, *args):
         r.rms_before, r.rms_after, r.confirmed = 2.0, (1.0 if r is explained else 5.0), True
         r.consistent_after = r is explained  # its check finds no systematic residual
 
-    monkeypatch.setattr(rank, "_refit", refit)
-    monkeypatch.setattr(rank, "quick_fit", lambda model, seed=0: quadratic.idata)
-    monkeypatch.setattr(rank, "lfo_points", lambda *a: np.zeros(3))
-    cands = {c.key: c for c in rank.physics_candidates(quadratic.model.scene)}
+    monkeypatch.setattr(confirm, "refit", refit)
+    monkeypatch.setattr(confirm, "quick_fit", lambda model, seed=0: quadratic.idata)
+    monkeypatch.setattr(confirm, "lfo_points", lambda *a: np.zeros(3))
     for first_good, expected in ((0, 2), (3, 4)):
         rows = copy.deepcopy(quadratic.diagnosis.ranking)
         physical = [r for r in rows if r.kind == "effect"]
         explained = physical[first_good]
         lines = []
-        rank.confirm(quadratic.model, quadratic.idata, rows, cands, 2, 2.0, lines.append)
+        confirm.confirm(quadratic.model, quadratic.idata, rows, 2, 2.0, lines.append)
         assert sum(r.confirmed is not None for r in rows) == expected
         # the user hears of each refit as it starts and ends
         refits = [ln for ln in lines if ln.strip().startswith("refit ")]
@@ -180,7 +178,8 @@ def test_candidates_of_a_contact_scene(tmp_path):
 
 
 def test_twins_follow_their_representative_and_share_its_rank():
-    from physdsl.diagnose.rank import Ranked, tie_twins
+    from physdsl.diagnose.diagnosis import Ranked
+    from physdsl.diagnose.ordering import tie_twins
 
     rows = [Ranked(0, "effect", e, t, 1.0, 0.1, 1) for e, t in
             [("linear_drag", "rod"), ("joint_friction", "hinge"), ("joint_damping", "hinge")]]
@@ -193,7 +192,8 @@ def test_twins_follow_their_representative_and_share_its_rank():
 def test_candidates_whose_evidence_ties_the_winner_share_its_rank():
     """Without pointwise values, ΔELPD and ΔLFO both within 4 of the winner's: a tie, sharing
     rank 1; a candidate 14 behind in ΔLFO is ranked after, even with a higher ΔELPD."""
-    from physdsl.diagnose.rank import Ranked, evidence_ties, order_by_evidence, tie_twins
+    from physdsl.diagnose.diagnosis import Ranked
+    from physdsl.diagnose.ordering import evidence_ties, order_by_evidence, tie_twins
 
     def row(effect, elpd, lfo):
         r = Ranked(0, "effect", effect, "ball", 1.0, 0.1, 1, confirmed=True)
@@ -217,7 +217,8 @@ def test_candidates_whose_evidence_ties_the_winner_share_its_rank():
 def test_a_gap_within_twice_its_standard_error_is_a_tie():
     """ΔLFO 10 apart: a tie where the pointwise differences scatter (se of their sum ~8), an
     order where every point favours the winner alike (se ~0); ΔELPD alike in both."""
-    from physdsl.diagnose.rank import Ranked, evidence_ties, order_by_evidence
+    from physdsl.diagnose.diagnosis import Ranked
+    from physdsl.diagnose.ordering import evidence_ties, order_by_evidence
 
     rng = np.random.default_rng(1)
 
@@ -242,7 +243,7 @@ def test_a_gap_within_twice_its_standard_error_is_a_tie():
 def test_a_posterior_wider_than_its_prior_is_flagged(quadratic):
     """Laplace draws with a floored curvature (variance ~1e10) are no posterior: flagged, and
     the good fit is not."""
-    from physdsl.diagnose.workflow import wider_than_prior
+    from physdsl.infer.fit import wider_than_prior
 
     assert wider_than_prior(quadratic.model, quadratic.idata) == []
     broken = quadratic.idata.copy()
@@ -254,7 +255,7 @@ def test_a_posterior_wider_than_its_prior_is_flagged(quadratic):
 def test_where_laplace_fails_metropolis_starts_at_the_same_modes(quadratic, monkeypatch):
     """The fallback samples from the modes MAP found (found once), not from fresh prior draws:
     both backends get the same start positions, the second chain included."""
-    from physdsl.diagnose import rank
+    from physdsl.infer import fit
     from physdsl.infer.backends import map as map_backend
 
     def no_laplace(problem, mode):
@@ -263,14 +264,14 @@ def test_where_laplace_fails_metropolis_starts_at_the_same_modes(quadratic, monk
     monkeypatch.setattr(map_backend, "laplace_sqrt", no_laplace)
     model = quadratic.model
     calls = []
-    real_infer = type(model).infer
+    real_infer = fit.infer
 
-    def spy(self, **kwargs):
+    def spy(model, **kwargs):
         calls.append((kwargs["backend"], np.asarray(kwargs["positions"])))
-        return real_infer(self, **kwargs)
+        return real_infer(model, **kwargs)
 
-    monkeypatch.setattr(type(model), "infer", spy)
-    idata = rank.fit_with_fallback(model, "map", chains=2, warmup=60, samples=20, seed=1,
+    monkeypatch.setattr(fit, "infer", spy)
+    idata = fit.fit_with_fallback(model, "map", chains=2, warmup=60, samples=20, seed=1,
                                    progress=False)
     assert [b for b, _ in calls] == ["map", "rmh"]
     np.testing.assert_array_equal(calls[0][1], calls[1][1])
@@ -305,7 +306,7 @@ def test_refine_starts_the_next_round_where_the_refit_ended(quadratic, quadratic
     billiards' second round settled at 7.85σ where the diagnosis's refit had reached 0.97σ)."""
     import dataclasses
 
-    from physdsl.diagnose import rank
+    from physdsl.diagnose import refine as refine_module
     from physdsl.diagnose.refine import refine
     from physdsl.diagnose.workflow import point_estimate
 
@@ -319,8 +320,8 @@ def test_refine_starts_the_next_round_where_the_refit_ended(quadratic, quadratic
     winner = dataclasses.replace(_row(quadratic.diagnosis, "quadratic_drag@ball"), confirmed=True,
                                  fitted={"name": key, "median": 4e-4}, snippet="effect ...")
     diag = dataclasses.replace(quadratic.diagnosis, winner=winner, verdict="missing effect")
-    monkeypatch.setattr(rank, "fit_with_fallback", fit)
-    monkeypatch.setattr(rank, "diagnose", lambda *a, **k: diag)
+    monkeypatch.setattr(refine_module, "fit_with_fallback", fit)
+    monkeypatch.setattr(refine_module, "diagnose", lambda *a, **k: diag)
     scene = next(quadratic.folder.glob("naive.phys"))
     rounds = refine(scene, tmp_path / "out", max_rounds=2, echo=lambda *_: None)
     assert [r.added for r in rounds] == [None, {"effect": "quadratic_drag", "target": "ball"}]

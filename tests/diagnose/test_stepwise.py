@@ -10,7 +10,7 @@ import pytest
 
 from physdsl.compile import Model
 from physdsl.diagnose.candidates import Candidate, physics_candidates
-from physdsl.diagnose.edits import load_text, unknown_keys, with_effect, without_effect
+from physdsl.diagnose.edits import Draft, load_text, unknown_keys, with_effect
 from physdsl.diagnose.refine import refine
 from physdsl.diagnose.stepwise import Comparison, alternatives, drop_wins, swap_wins
 
@@ -53,7 +53,7 @@ def test_a_four_link_chain_has_group_candidates_shared_and_per_joint(tmp_path):
     assert len(unknown_keys(scene, each)) == 4
     # taking a group out restores the scene: its effects and its shared param go
     for cand, grown in ((shared, one), (each, four)):
-        back = load_text(scene, without_effect(grown, cand))
+        back = Draft.of(grown).without_candidate(cand).scene
         assert {e.effect for e in back.effects} == {"gravity"} and {u.name for u in back.unknowns} == {"j1.initial"}
     # a group already partly present is no candidate; a chain of one joint has no group
     part = load_text(scene, with_effect(scene, Candidate("effect", "joint_damping", ("j2",))))
@@ -64,10 +64,10 @@ def test_alternatives_come_from_the_library_same_target_and_sign(tmp_path):
     write_csv(tmp_path / "joints.csv", np.linspace(0, 1, 11), np.zeros((11, 1)), "hinge")
     scene = load_scene(tmp_path, PENDULUM)
     damped = load_text(scene, with_effect(scene, Candidate("effect", "joint_damping", ("hinge",))))
-    alts = {c.key for c in alternatives(damped, Candidate("effect", "joint_damping", ("hinge",)))}
+    alts = {c.key for c in alternatives(Draft.of(damped), Candidate("effect", "joint_damping", ("hinge",)))}
     assert alts == {"joint_friction@hinge", "joint_spring@hinge"}
     drag = load_text(scene, with_effect(scene, Candidate("effect", "linear_drag", ("bob",))))
-    alts = {c.key for c in alternatives(drag, Candidate("effect", "linear_drag", ("bob",)))}
+    alts = {c.key for c in alternatives(Draft.of(drag), Candidate("effect", "linear_drag", ("bob",)))}
     assert "quadratic_drag@bob" in alts and "wind@bob" not in alts  # wind: a vector, no sign
     assert all(k.endswith("@bob") for k in alts)
 
@@ -172,7 +172,8 @@ def test_the_loop_drops_an_effect_whose_evidence_vanished(steep, tmp_path):
 def test_strong_evidence_breaks_a_tie_in_elpd_not_a_clear_win():
     """Among candidates tied in ΔELPD the ΔLFO leader wins unless another's Laplace evidence
     is stronger by more than log 10; a candidate ahead in ΔELPD beyond the margin stays first."""
-    from physdsl.diagnose.rank import Ranked, order_by_evidence
+    from physdsl.diagnose.diagnosis import Ranked
+    from physdsl.diagnose.ordering import order_by_evidence
 
     def row(effect, elpd, lfo, log_z):
         r = Ranked(0, "effect", effect, "ball", 1.0, 0.1, 1, confirmed=True)

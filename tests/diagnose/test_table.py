@@ -1,7 +1,7 @@
 """The diagnosis table's p-values: an underflowed p shows its order of magnitude, not 0."""
 import numpy as np
 
-from physdsl.diagnose.rank import Ranked, p_value_text
+from physdsl.diagnose.diagnosis import Ranked, p_value_text
 from physdsl.diagnose.score import chi2_logsf
 
 

@@ -36,7 +36,7 @@ def _shifted(model, idata, name: str, delta: float):
 
 def test_fit_quality_is_the_checks_numbers(projectile_model, good):
     from physdsl.diagnose.workflow import check_model
-    from physdsl.infer.output import fit_quality
+    from physdsl.diagnose.quality import fit_quality
 
     q = fit_quality(projectile_model, good)
     report = check_model(projectile_model, good)
@@ -51,7 +51,7 @@ def test_fit_quality_is_the_checks_numbers(projectile_model, good):
 
 
 def test_a_fit_far_from_the_data_is_said_to_describe_a_wrong_model(projectile_model, good):
-    from physdsl.infer.output import fit_quality, fit_quality_lines
+    from physdsl.diagnose.quality import fit_quality, fit_quality_lines
 
     off = _shifted(projectile_model, good, "ball.velocity[0]", 0.5)  # 0.5 m/s too fast
     q = fit_quality(projectile_model, off)
@@ -67,7 +67,7 @@ def test_a_start_far_from_the_first_samples_is_flagged(projectile_model, good):
     from dataclasses import replace
 
     from physdsl.diagnose.workflow import observable_fits
-    from physdsl.infer.output import FAR_START, start_agreement
+    from physdsl.diagnose.quality import FAR_START, start_agreement
 
     fits = observable_fits(projectile_model, good)
     (near,) = start_agreement(projectile_model, fits)
@@ -107,15 +107,15 @@ def test_infer_prints_and_saves_the_fit_quality(projectile_scene, cli, tmp_path)
 
 
 def test_a_failing_quality_check_does_not_lose_the_fit(good, monkeypatch):
-    from physdsl.infer import output, run
+    from physdsl.diagnose.quality import fit_quality_lines
+    from physdsl.infer import run
     from physdsl.infer.progress import Stages
 
     def broken(model, idata):
         raise ValueError("no trajectory")
 
-    monkeypatch.setattr(output, "fit_quality", broken)
     idata = good.copy()
-    q = run._fit_quality(None, idata, Stages(enabled=False))
+    q = run._fit_quality(broken, None, idata, Stages(enabled=False))["fit_quality"]
     assert q == {"error": "ValueError: no trajectory", "warnings": []}
-    assert output.fit_quality_lines(q) == ["fit: quality not computed (ValueError: no trajectory)"]
+    assert fit_quality_lines(q) == ["fit: quality not computed (ValueError: no trajectory)"]
     assert "fit_quality" in idata.attrs

@@ -1,0 +1,167 @@
+"""Confirmation by refitting: the best physical candidates are refitted with the effect added and
+compared with the scene as it is by PSIS-LOO (ΔELPD), leave-future-out log predictive density
+(ΔLFO), residual RMS in noise units and Laplace evidence."""
+from __future__ import annotations
+
+import difflib
+import time
+
+import numpy as np
+
+from ..compile import Model
+from ..errors import PhysError
+from ..infer.fit import quick_fit
+from .candidates import Candidate
+from .diagnosis import Ranked, Refit
+from .edits import Draft, unknown_key, unknown_keys
+from .evidence import laplace_log_evidence
+from .lfo import LFO_FRACTION, cutoff as lfo_cutoff, lfo_points
+from .loo import combined_loo, sum_se
+from .sensor_terms import start_value
+from .workflow import check_model, point_estimate
+
+# what a refit may raise without ending the diagnosis: user-facing errors (model, inference)
+# and numerical failures of the fit (non-positive-definite Laplace Hessian)
+REFIT_FAILURES = (PhysError, np.linalg.LinAlgError, FloatingPointError)
+EXTRA_REFITS = 2  # further candidates refitted while no refit has explained the misfit
+
+
+class Baseline:
+    """What every refit of one diagnosis is compared with: the scene as it is (its draft, fit,
+    PSIS-LOO, residual RMS) and its leave-future-out scores (None: unavailable)."""
+
+    def __init__(self, model, idata, draft: Draft, base_rms: float, echo):
+        self.model, self.idata, self.draft, self.rms = model, idata, draft, base_rms
+        self.loo = combined_loo(idata)
+        self.cutoff = lfo_cutoff(model)
+        echo(f"  fitting the first {LFO_FRACTION:.0%} of the recording (leave-future-out baseline)")
+        try:
+            self.lfo = lfo_points(model, quick_fit(Model(model.scene, until=self.cutoff)),
+                                  self.cutoff)
+        except REFIT_FAILURES:
+            self.lfo = None  # leave-future-out unavailable: judged on ΔELPD and RMS alone
+        self._text = None
+
+    def text(self) -> str:
+        """The scene's text (printed once, for the snippets)."""
+        if self._text is None:
+            self._text = self.draft.text()
+        return self._text
+
+
+def confirm(model, idata, ranked: list[Ranked], k: int, base_rms: float, echo=None,
+            draft: Draft | None = None) -> None:
+    """Refit the best ``k`` physical candidates with the effect added; fill the comparison fields.
+
+    Far from the truth (a misfit of tens of sigma) the score test's local ranking can put the
+    true effect below the first ``k``: while no refit has brought the residual RMS down to
+    the noise (its check flags no systematic residual), up to ``EXTRA_REFITS`` further
+    candidates are refitted.
+
+    A candidate that acts exactly like a better ranked one (``same_as``, see
+    ``ordering.mark_twins``) would give the same refit, so it is skipped and the next distinct
+    candidate is refitted instead. A refit that fails (a model error, or a fit the inference
+    cannot complete) leaves that candidate unconfirmed with a note; it never ends the whole
+    diagnosis. ``echo`` (a line -> None) hears of each refit as it starts and ends: on contact
+    scenes each takes minutes. ``draft``: the scene with its AST (parsed when not given).
+    """
+    echo = echo or (lambda line: None)
+    base = Baseline(model, idata, draft or Draft.of(model.scene), base_rms, echo)
+    done = 0
+    # a sensor fault is refitted where it leads the score tests (on top of the effects' refits)
+    first = next((r for r in ranked if not r.same_as), None)
+    for r in ranked:
+        if r.same_as or (r.kind != "effect" and r is not first):
+            continue
+        explained = any(t.consistent_after for t in ranked)
+        if r.kind == "effect" and (done >= k + EXTRA_REFITS or (done >= k and explained)):
+            break
+        done += r.kind == "effect"
+        echo(f"  refit {done}: with {r.effect} on {r.target}")
+        t0 = time.perf_counter()
+        try:
+            refit(base, r, refit_start(model, idata, r.candidate, r.estimate))
+            echo(f"    {evidence_text(r)} ({time.perf_counter() - t0:.0f} s)")
+        except REFIT_FAILURES as err:
+            r.note = f"refit failed: {getattr(err, 'message', None) or err}"
+            r.confirmed = False
+            echo(f"    {r.note}")
+
+
+def evidence_text(r: Ranked) -> str:
+    """ΔELPD ± se, ΔLFO and RMS before → after of a refitted candidate, as far as known."""
+    parts = []
+    if r.delta_elpd is not None:
+        parts.append(f"ΔELPD {r.delta_elpd:+.1f} ± {r.delta_elpd_se or 0.0:.1f}")
+    if r.delta_lfo is not None:
+        parts.append(f"ΔLFO {r.delta_lfo:+.1f}")
+    if r.rms_after is not None and r.rms_before is not None:
+        parts.append(f"RMS {r.rms_before:.2f}σ → {r.rms_after:.2f}σ")
+    return ", ".join(parts)
+
+
+def refit(base: Baseline, r: Ranked, start: dict | None = None) -> None:
+    """Fit the scene with ``r.candidate`` added (first chain from ``start``) and fill ``r``'s
+    comparison fields; ``r.refit`` keeps the scene and its compiled Model."""
+    scene, cand = base.model.scene, r.candidate
+    draft = base.draft.with_candidate(cand)
+    new = Model(draft.scene)
+    r.refit = Refit(draft, new)
+    fit = quick_fit(new, start=start)
+    if fit.attrs.get("fit_note"):
+        r.note = fit.attrs["fit_note"]
+    rep = check_model(new, fit)
+    r.elpd_points = np.asarray(combined_loo(fit).loo_i) - np.asarray(base.loo.loo_i)
+    r.delta_elpd, r.delta_elpd_se = float(r.elpd_points.sum()), sum_se(r.elpd_points)
+    if base.lfo is not None:
+        new_cut = quick_fit(Model(new.scene, until=base.cutoff), start=start)
+        r.lfo_points = lfo_points(new, new_cut, base.cutoff) - base.lfo
+        r.delta_lfo = float(r.lfo_points.sum())
+    r.rms_before, r.rms_after = base.rms, float(rep.rms_sigma)
+    r.log_evidence = laplace_log_evidence(new, fit)
+    r.consistent_after = rep.consistent
+    r.fitted = fitted_summary(new, fit, unknown_key(scene, cand), unknown_keys(scene, cand))
+    r.snippet = snippet(base.text(), draft.text())
+    r.confirmed = bool(r.delta_elpd > 2 * max(r.delta_elpd_se, 1.0)
+                       and (r.delta_lfo is None or r.delta_lfo > 0)
+                       and r.rms_after < 0.9 * base.rms)
+
+
+def fitted_summary(model, fit, key: str, keys: list[str]) -> dict:
+    """The added strength's median and 90% interval (``key``), the medians of all it adds
+    (``keys``) and the most likely draw of every unknown (``point``)."""
+    return {"name": key, "median": float(np.median(fit.posterior[key].values)),
+            "values": {k: float(np.median(fit.posterior[k].values)) for k in keys},
+            "q5": float(np.quantile(fit.posterior[key].values, 0.05)),
+            "q95": float(np.quantile(fit.posterior[key].values, 0.95)),
+            "point": {k: np.asarray(v).tolist() for k, v in point_estimate(model, fit).items()}}
+
+
+def refit_start(model, idata, cand: Candidate, estimate: float | None) -> dict:
+    """Where a refit with ``cand`` added starts: the fit without it, and the candidate's strength
+    at its off value moved by the score test's one-step estimate (kept on the physical side).
+
+    The model with the effect nests the one without, so this start is at least as good as the
+    smaller model's fit; a start drawn from the prior can instead land in another basin (a
+    block given a friction coefficient that makes it stick cannot feel a change of mu).
+    """
+    if cand.kind == "sensor":
+        return {**point_estimate(model, idata), unknown_key(model.scene, cand): start_value(cand, estimate)}
+    decl = model.scene.effect_library[cand.name].strength
+    off = np.asarray(decl.off if decl.off is not None else 0.0, dtype=float)
+    start = dict(point_estimate(model, idata))
+    if off.ndim or decl.shape:  # a vector strength (wind): its prior draws the start
+        return start
+    step = float(estimate) if estimate is not None and np.isfinite(estimate) else 0.0
+    if decl.sign:  # one-sided: at least a hair inside the physical side
+        step = decl.sign * max(decl.sign * step, 1e-3 * max(abs(float(off)), 1.0))
+    for key in unknown_keys(model.scene, cand):
+        start[key] = float(off) + step
+    return start
+
+
+def snippet(before: str, after: str) -> str:
+    """The lines ``after`` adds to ``before`` (the .phys text to paste)."""
+    added = [ln[1:] for ln in difflib.ndiff(before.splitlines(), after.splitlines())
+             if ln.startswith("+ ")]
+    return "\n".join(added).strip("\n")
