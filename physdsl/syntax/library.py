@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
-from ..errors import PhysError, PhysImportError, PhysNameError, Span
+from ..errors import PhysError, PhysErrors, PhysImportError, PhysNameError
 from ..registry import EFFECT_DECLARATIONS
 from . import ast
 from .bounds import Bounds
@@ -132,7 +132,6 @@ def _stdlib_cached(stamp: tuple, plugins: tuple = ()) -> Loaded:
         except PhysError as ex:
             errors.append(ex)
     if errors:
-        from ..errors import PhysErrors
         raise errors[0] if len(errors) == 1 else PhysErrors(errors)
     return loaded
 
