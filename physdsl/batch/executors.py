@@ -107,7 +107,8 @@ def _connect(ray, address: str | None, workers: int | None) -> None:
         if address:
             ray.init(address=address, log_to_driver=False)
         else:
-            ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
+            ray.init(address="local", num_cpus=workers, include_dashboard=False,
+                     log_to_driver=False)  # "local": a new Ray, never one found running
     except (ConnectionError, RuntimeError, ValueError) as ex:
         raise UsageError(f"cannot reach a Ray cluster at {address or 'this machine'}: {ex}",
                          hint="start its head with `ray start --head --port PORT` and pass "

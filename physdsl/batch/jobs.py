@@ -61,7 +61,7 @@ def run_job(job: Job) -> dict:
     attempt = _mark_attempt(Path(job.attempts))
     if folder.exists():
         shutil.rmtree(folder)  # a cut-off attempt's leftovers
-    start = time.perf_counter()
+    started, start = time.time(), time.perf_counter()
     with compile_clock() as clock:
         try:
             RUNNERS[job.command](job, folder)
@@ -73,7 +73,8 @@ def run_job(job: Job) -> dict:
             status, error = "failed", f"internal error: {type(ex).__name__}: {ex}\n{tail}"
     record = dict(name=job.name, command=job.command, scene=job.scene, status=status,
                   error=error, attempt=attempt, host=socket.gethostname(), pid=os.getpid(),
-                  wall_s=round(time.perf_counter() - start, 3), **clock)
+                  started=round(started, 3), wall_s=round(time.perf_counter() - start, 3),
+                  **clock)
     io.write_json(folder / (DONE if status == "done" else FAILED), record)
     return record
 
