@@ -30,14 +30,23 @@ With ``--mode refine`` (or ``both``, the default) the case's naive scene also go
 - ``rounds.CASE``: the rounds refine fitted (round 0 is the naive scene), with each round's
   action and RMS in ``actions.CASE``,
 - ``wall_s.CASE``: refine's wall time; ``refit.CASE``: each hidden strength in the final fit
-  (mean and 90% interval) against the truth.
+  (mean and 90% interval) against the truth,
+- ``named_right.CASE``: 1 when every hidden law is on its target and no other law is on any
+  hidden target (the right law, not only the right place: ``hinge_viscous`` / ``hinge_coulomb``,
+  ``drag_linear`` / ``drag_quadratic``; ``damped_chain``: damping on every hinge),
+- ``effects_added.CASE``: the effects refine added beyond the naive scene's.
+
+With ``--mode false-positives`` the refine loop runs on each case of ``examples/no-effect``
+(20 MuJoCo recordings whose naive scene is the whole physics; ``tools/make_data/no_effect.py``)
+and the run prints ``effects_added.CASE`` and ``false_positive_rate: x/20`` (the cases where
+refine added any effect; the goal is at most 2, the nominal rate of its tests).
 
 Each case runs in its own process with a time limit (``--timeout``, seconds), so a case that
 cannot finish is reported as such and the others still run; its refits are reported on stderr
 as they go.
 
 Run: .venv/bin/python benchmarks/diagnosis.py [--case thrown_ball [--case pendulum]] [--confirm 2]
-[--mode diagnose|refine|both]
+[--mode diagnose|refine|both|false-positives] [--timeout 600]
 """
 from __future__ import annotations
 
@@ -51,6 +60,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 CASES = ROOT / "examples" / "hidden-effect"
+NO_EFFECT = ROOT / "examples" / "no-effect"  # nothing hidden: the false-positive check
 
 
 def _run_child(name: str, cmd: list[str], timeout: float) -> dict:
@@ -146,9 +156,19 @@ def run_case(name: str, confirm: int, seed: int) -> dict:
 
 
 def _hidden(truth: dict) -> list[tuple[str, str]]:
-    """Every hidden effect of a case's truth as (law, target)."""
-    effects = [truth["hidden_effect"], *truth.get("also_hidden", [])]
+    """Every hidden effect of a case's truth as (law, target); none for a no-effect case."""
+    effects = [truth["hidden_effect"], *truth.get("also_hidden", [])] if truth.get("hidden_effect") else []
     return [(e["effect"], e["target"]) for e in effects]
+
+
+def _named_right(effects, hidden) -> bool:
+    """Every hidden law on its target and no other law on any hidden target: the right law
+    named, not only the right place (viscous vs Coulomb in one hinge, linear vs quadratic drag)."""
+    if not all(_named(effects, law, target) for law, target in hidden):
+        return False
+    places = {tuple(target.split(",")) for _, target in hidden}
+    return all((e, t) in {(law, tuple(target.split(","))) for law, target in hidden}
+               for e, t in effects if t in places)
 
 
 def _named(effects, law: str, target: str) -> bool:
@@ -160,9 +180,10 @@ def _named(effects, law: str, target: str) -> bool:
     return (law, parts) in effects
 
 
-def run_refine(name: str, seed: int) -> dict:
+def run_refine(name: str, seed: int, folder: Path | None = None) -> dict:
     """Run ``refine`` on one case's naive scene (the CLI's defaults) and score the final scene
-    against the truth: every hidden effect named, final RMS, rounds, wall time, refitted values."""
+    against the truth: every hidden effect named (the right law), the effects refine added
+    beyond the naive scene's, final RMS, rounds, wall time, refitted values."""
     import csv
     import tempfile
 
@@ -170,7 +191,8 @@ def run_refine(name: str, seed: int) -> dict:
     from physdsl.diagnose.refine import refine
     from physdsl.syntax import load
 
-    folder = CASES / name
+    folder = CASES / name if folder is None else folder
+    naive = {(e.effect, tuple(e.target)) for e in load(folder / "naive.phys").effects}
     truth = json.loads((folder / "truth.json").read_text())
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
@@ -191,6 +213,8 @@ def run_refine(name: str, seed: int) -> dict:
                       "q95": [float(r["q95"]) for r in rows] or None}
     return {
         "named_all": int(all(_named(effects, law, target) for law, target in _hidden(truth))),
+        "named_right": int(_named_right(effects, _hidden(truth))),
+        "effects_added": sorted(f"{e}@{','.join(t)}" for e, t in effects - naive),
         "final_rms_sigma": last.rms_sigma, "rounds": len(rounds), "wall_s": wall,
         "actions": [{"action": r.action, "added": r.added, "replaced": r.replaced,
                      "rms_sigma": r.rms_sigma} for r in rounds],
@@ -212,22 +236,28 @@ def main() -> None:
     ap.add_argument("--confirm", type=int, default=2, help="physical candidates to refit")
     ap.add_argument("--timeout", type=float, default=2400.0, help="seconds per case")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--mode", choices=("diagnose", "refine", "both"), default="both",
-                    help="one diagnosis round, the refine loop, or both")
+    ap.add_argument("--mode", choices=("diagnose", "refine", "both", "false-positives"), default="both",
+                    help="one diagnosis round, the refine loop, or both (hidden-effect cases); "
+                         "false-positives: the refine loop on the no-effect cases (examples/no-effect)")
     ap.add_argument("--one", default="", help=argparse.SUPPRESS)  # worker mode
     args = ap.parse_args()
     if args.one:
         res = {"case": args.one}
+        if args.mode == "false-positives":
+            res.update(run_refine(args.one, args.seed, NO_EFFECT / args.one))
+            print("RESULT " + json.dumps(res), flush=True)
+            return
         if args.mode != "refine":
             res.update(run_case(args.one, args.confirm, args.seed))
         if args.mode != "diagnose":
             res.update(run_refine(args.one, args.seed))
         print("RESULT " + json.dumps(res), flush=True)
         return
-    known = sorted(p.name for p in CASES.iterdir() if (p / "truth.json").exists())
+    where = NO_EFFECT if args.mode == "false-positives" else CASES
+    known = sorted(p.name for p in where.iterdir() if (p / "truth.json").exists())
     unknown = [n for n in args.case if n not in known]
     if unknown:
-        ap.error(f"no case {', '.join(unknown)} in examples/hidden-effect (cases: {', '.join(known)})")
+        ap.error(f"no case {', '.join(unknown)} in {where.relative_to(ROOT)} (cases: {', '.join(known)})")
     names = args.case or known
     results = []
     for name in names:
@@ -240,6 +270,9 @@ def main() -> None:
         results.append(res)
         _print_lines(res)
     print()
+    if args.mode == "false-positives":
+        print(_false_positive_summary(results))
+        return
     if args.mode != "refine":
         print(_table(results))
     if args.mode != "diagnose":
@@ -278,8 +311,28 @@ def _print_lines(r: dict) -> None:
     print(f"load_average.{n}: {r['load']}", flush=True)
 
 
+def _false_positive_summary(results: list[dict]) -> str:
+    """The table of the no-effect cases and ``false_positive_rate: x/N`` (a case that did not
+    finish counts as not run, and the rate says how many ran)."""
+    ran = [r for r in results if "effects_added" in r]
+    bad = [r for r in ran if r["effects_added"]]
+    lines = ["| case | effects added | rounds | final RMS (σ) | wall (s) | load |", "|---|---|---|---|---|---|"]
+    for r in results:
+        if "effects_added" not in r:
+            lines.append(f"| {r['case']} | {r.get('error', '')} | | | {r['seconds']:.0f} | {r['load']} |")
+            continue
+        lines.append(f"| {r['case']} | {', '.join(r['effects_added']) or 'none'} | {r['rounds']} | "
+                     f"{r['final_rms_sigma']:.2f} | {r['wall_s']:.0f} | {r['load']} |")
+    rate = f"false_positive_rate: {len(bad)}/{len(ran)}"
+    if len(ran) < len(results):
+        rate += f" ({len(results) - len(ran)} of {len(results)} did not finish)"
+    return "\n".join(lines) + "\n" + rate
+
+
 def _print_refine(r: dict) -> None:
     n = r["case"]
+    print(f"effects_added.{n}: {len(r['effects_added'])} ({', '.join(r['effects_added']) or 'none'})")
+    print(f"named_right.{n}: {r['named_right']}")
     print(f"named_all.{n}: {r['named_all']} (final effects: {', '.join(r['final_effects']) or 'none'})")
     print(f"final_rms_sigma.{n}: {r['final_rms_sigma']:.3f}")
     print(f"rounds.{n}: {r['rounds']}")
