@@ -2,7 +2,8 @@
 model posterior, with ``name: value`` lines.
 
 Cases: every ``examples/hidden-effect/CASE`` with its hidden effect added to ``naive.phys``
-(what ``refine``'s first round fits: the right effect at the library's default prior), and
+(what ``refine``'s first round fits: the right effect, its strength unknown with the
+library's prior; ``hidden_cases.scene_text``), and
 the MuJoCo-made examples that have no hidden effect (``double_pendulum``, ``cart_pole``).
 Each is fitted once by MAP + Laplace (``infer --backend map``, default starts, 2 chains x
 ``--samples`` draws), in its own process with a time limit. Per true parameter component:
@@ -30,6 +31,8 @@ import sys
 import time
 from pathlib import Path
 
+from hidden_cases import scene_text as hidden_scene
+
 ROOT = Path(__file__).resolve().parent.parent
 HIDDEN = ROOT / "examples" / "hidden-effect"
 PLAIN = ("double_pendulum", "cart_pole")  # MuJoCo-made examples whose scene has every effect
@@ -42,23 +45,11 @@ def cases() -> dict[str, Path]:
 
 
 def scene_text(folder: Path) -> str:
-    """The case's scene: naive.phys with the hidden effect(s) added, or the example's own."""
-    from physdsl.syntax import load
-    from physdsl.syntax.edit import add_effect
-
+    """The case's scene: naive.phys with the hidden effect(s) added as ``refine`` adds them
+    (``hidden_cases``), or the example's own."""
     if not (folder / "naive.phys").exists():
         return (folder / f"{folder.name}.phys").read_text()
-    hidden = json.loads((folder / "truth.json").read_text())
-    text = (folder / "naive.phys").read_text()
-    for eff in [hidden["hidden_effect"]] + hidden.get("also_hidden", []):
-        targets = [eff["target"]]
-        if "*" in eff["target"]:  # a pair with every moving body
-            fixed = eff["target"].split(",")[0]
-            targets = [f"{fixed},{b.name}" for b in load(folder / "naive.phys").bodies
-                       if b.name != fixed and b.shape is not None and not b.fixed]
-        for target in targets:
-            text = add_effect(text, eff["effect"], target)
-    return text
+    return hidden_scene(folder)
 
 
 def truth_values(folder: Path, names) -> dict:

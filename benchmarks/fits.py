@@ -1,7 +1,7 @@
 """Fit benchmark: how fast and how well the default MAP fit does, per case; ``name: value`` lines.
 
 Cases: every ``examples/hidden-effect/CASE`` made from a dev corpus case (its ``naive.phys``
-with the hidden effect of ``truth.json`` added at its default prior, so the model can fit and
+with the hidden effect of ``truth.json`` added as ``refine`` adds it, its strength unknown, so the model can fit and
 its intervals can cover the truth), and ``examples/chain_hit`` (a ball thrown at a hanging
 chain; its ``scene.phys`` has no missing effect). For each, one ``infer --backend map`` with the
 default settings (4 chains = starts, 500 optimisation steps) and ``--samples`` Laplace draws:
@@ -29,6 +29,8 @@ import sys
 import time
 from pathlib import Path
 
+from hidden_cases import scene_text as hidden_scene
+
 ROOT = Path(__file__).resolve().parent.parent
 HIDDEN = ROOT / "examples" / "hidden-effect"
 CHAIN = ROOT / "examples" / "chain_hit"
@@ -47,23 +49,9 @@ def cases() -> dict[str, tuple[Path, str | None]]:
 
 
 def scene_text(folder: Path, scene: str | None) -> str:
-    """The scene's text: ``scene`` as it is, or naive.phys with the hidden effect added."""
-    from physdsl.syntax.edit import add_effect
-
-    if scene is not None:
-        return (folder / scene).read_text()
-    from physdsl.syntax import load
-
-    hidden = json.loads((folder / "truth.json").read_text())["hidden_effect"]
-    text = (folder / "naive.phys").read_text()
-    targets = [hidden["target"]]
-    if "*" in hidden["target"]:  # a pair with every other body: one effect per pair
-        fixed, _ = hidden["target"].split(",")
-        targets = [f"{fixed},{b.name}" for b in load(folder / "naive.phys").bodies
-                   if b.name != fixed and b.shape is not None and not b.fixed]
-    for target in targets:
-        text = add_effect(text, hidden["effect"], target)
-    return text
+    """The scene's text: ``scene`` as it is, or naive.phys with the hidden effect added as
+    ``refine`` adds it (``hidden_cases``)."""
+    return (folder / scene).read_text() if scene is not None else hidden_scene(folder)
 
 
 def run_case(name: str, samples: int, seed: int) -> dict:

@@ -21,7 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 from numpyro.infer.util import constrain_fn, potential_energy
 
-from .backends.map import find_mode, major_modes
+from .backends.map import find_mode, major_modes, remember_modes
 from .base import cached, gauss_newton_fn, value_and_grad_fn
 from .data_starts import data_start
 from .problem import prior_draws_unconstrained, unconstrained_layout, unraveler
@@ -94,7 +94,8 @@ def search(problem, starts, labels, steps: int, on_start=None) -> Search:
     lps = np.where(np.isfinite(lps), lps, -np.inf)
     rms = np.array([residual_rms(problem, m, lp) for m, lp in zip(modes, lps)])
     basins = _cluster(problem, modes, lps, rms, curv, labels)
-    kept, _, best = major_modes(problem, modes, lps=lps)
+    kept, kept_lps, best = major_modes(problem, modes, lps=lps)
+    remember_modes(problem, kept, kept_lps)  # MAP keeps them as its modes (no second search)
     return Search(kept, basins, best)
 
 

@@ -30,11 +30,26 @@ def find_mode(problem, x0, steps: int = 300) -> np.ndarray:
 
 
 def levenberg_marquardt(gn, x0, steps: int = 300, value=None) -> np.ndarray:
-    """Maximise a log density whose curvature the Gauss-Newton matrix H describes: steps
-    (H + lam diag(H)) d = gradient, lam shrunk after a step that raises the log density and
-    grown (same H) after one that does not. ``gn``: x -> (log p, gradient, H); ``value``:
-    x -> log p, cheaper (no tangents) for trial points, which are often rejected where the
-    log density jumps (a contact that switches between neighbouring parameter values).
+    """Maximise a log density whose curvature the Gauss-Newton matrix H describes; returns the
+    best point found. ``gn``: x -> (log p, gradient, H); ``value``: x -> log p, cheaper (no
+    tangents) for trial points, which are often rejected where the log density jumps (a
+    contact that switches between neighbouring parameter values).
+
+    Steps solve (H + lam diag(H)) d = gradient (Marquardt's scaling: every unknown in its own
+    units). The damping follows the gain ratio rho = actual / predicted gain of each step
+    (Nielsen's update, as in Madsen, Nielsen & Tingleff 2004, "Methods for non-linear least
+    squares problems", alg. 3.16, and levmar/optimistix): a step taken shrinks lam by
+    max(1/3, 1 - (2 rho - 1)^3), a step refused grows it by nu = 2, 4, 8, ... So a run of
+    refusals is undone at once by good steps (a fixed shrink factor left lam large and the
+    steps short for tens of iterations).
+
+    Converged when the full Gauss-Newton step would gain less than ``GAIN_TOL`` (its
+    predicted gain g^T H^-1 g / 2: the gradient measured in the metric of the information,
+    which does not depend on the damping or on the unknowns' units), or when the point no
+    longer moves (a step within rounding of x, or ``STALL`` steps in a row each gaining less
+    than ``GAIN_TOL``: a kink or rounding noise, where the prediction never comes true).
+    A small gain of one damped step is not convergence (the old test stopped there, short of
+    the mode).
 
     Trajectory fits are badly scaled (a start position seen to a millimetre beside a mass
     seen to tens of percent) and their log density bends at every contact; L-BFGS there
@@ -45,34 +60,59 @@ def levenberg_marquardt(gn, x0, steps: int = 300, value=None) -> np.ndarray:
     v, g, H = _evaluate(gn, x)
     if not np.isfinite(v):
         return x
-    lam = 1e-3
+    lam, nu, stalled = 1e-3, 2.0, 0
     for _ in range(steps):
+        if newton_gain(H, g) <= GAIN_TOL:
+            break  # at the mode: a full Gauss-Newton step would gain nothing that matters
         scale = np.maximum(np.diag(H), 1e-12 * max(float(np.max(np.abs(np.diag(H)))), 1e-300))
-        for retry in range(40):
-            try:
-                d = np.linalg.solve(H + lam * np.diag(scale), g)
-            except np.linalg.LinAlgError:
-                d = None
-            if d is not None and np.all(np.isfinite(d)):
-                if (g @ d <= 1e-10 * max(1.0, abs(v))  # a first-order gain below the
-                        or np.max(np.abs(d)) <= 1e-12 * (1.0 + np.max(np.abs(x)))):  # test's,
-                    return x  # or a step lost in rounding: at a mode (or a jump) already
-                # the first trial in full (most are taken); after a rejection, values first
-                vn = float(value(jnp.asarray(x + d))) if value is not None and retry else None
-                if vn is None or (np.isfinite(vn) and vn > v):
-                    vn, g_new, H_new = _evaluate(gn, x + d)
-                    if np.isfinite(vn) and vn > v:
-                        break
-            lam *= 4.0
-        else:
-            break  # no step raises it: against an edge
-        lam = max(lam / 3.0, 1e-12)
-        # converged as L-BFGS (below): a gain under 1e-10 of the log density, or no slope
-        done = vn - v <= 1e-10 * max(1.0, abs(v)) or np.max(np.abs(g_new)) < 1e-7
+        taken = False
+        while lam <= LAM_MAX:
+            d = _solve(H + lam * np.diag(scale), g)
+            if d is None:
+                lam, nu = lam * nu, nu * 2.0
+                continue
+            if np.max(np.abs(d)) <= 1e-14 * (1.0 + np.max(np.abs(x))):
+                return x  # the step is lost in rounding: nowhere left to go
+            predicted = float(g @ d - 0.5 * d @ H @ d)  # > 0: H + lam D is positive definite
+            # the first trial in full (most are taken); after a refusal, values first
+            vn = float(value(jnp.asarray(x + d))) if value is not None and nu > 2.0 else None
+            if vn is None or (np.isfinite(vn) and vn > v):
+                vn, g_new, H_new = _evaluate(gn, x + d)
+            rho = (vn - v) / max(predicted, 1e-300) if np.isfinite(vn) else -np.inf
+            if rho > 0:
+                taken = True
+                break
+            lam, nu = lam * nu, nu * 2.0
+        if not taken:
+            break  # no step raises it: against an edge, or a jump at the point itself
+        lam, nu = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), LAM_MIN), 2.0
+        stalled = stalled + 1 if vn - v <= GAIN_TOL else 0
         x, v, g, H = x + d, vn, g_new, H_new
-        if done:
+        if stalled >= STALL:
             break
     return x
+
+
+GAIN_TOL = 1e-9  # log-density units (nats): a gain below this has no statistical meaning
+STALL = 5  # steps in a row gaining less than GAIN_TOL: the search has stalled (a kink)
+LAM_MIN, LAM_MAX = 1e-12, 1e16  # damping bounds: below, a Gauss-Newton step; above, none
+
+
+def newton_gain(H, g) -> float:
+    """The gain g^T H^-1 g / 2 that the full Gauss-Newton step predicts (inf where H is
+    singular): the gradient's size in the metric of the information."""
+    d = _solve(H, g)
+    return float("inf") if d is None else 0.5 * float(g @ d)
+
+
+def _solve(A, b):
+    """A^-1 b by Cholesky (A symmetric positive definite), None where it is not."""
+    try:
+        L = np.linalg.cholesky(A)
+    except np.linalg.LinAlgError:
+        return None
+    d = np.linalg.solve(L.T, np.linalg.solve(L, b))
+    return d if np.all(np.isfinite(d)) else None
 
 
 def _evaluate(gn, x):
@@ -152,13 +192,36 @@ def _two_loop(g, pairs):
 
 
 def find_modes(problem, positions, steps: int = 300, on_mode=None) -> jnp.ndarray:
-    """``find_mode`` from each row of ``positions``; ``on_mode(1)`` after each (progress)."""
+    """``find_mode`` from each row of ``positions``, except rows that are modes already found
+    on this Problem's data (``remember_modes``: the multistart's), kept as they are
+    (optimising them again cost a Gauss-Newton evaluation or more per chain: a minute on a
+    contact scene). ``on_mode(1)`` after each (progress)."""
     modes = []
-    for x in np.asarray(positions):
-        modes.append(find_mode(problem, x, steps))
+    for x in np.asarray(positions, dtype=float):
+        modes.append(x if known_mode(problem, x) is not None else find_mode(problem, x, steps))
         if on_mode is not None:
             on_mode(1)
     return jnp.asarray(np.stack(modes))
+
+
+def remember_modes(problem, modes, lps) -> None:
+    """Mark ``modes`` (with log densities ``lps``) as optimised on ``problem``'s data, so a
+    later ``find_modes`` there keeps them. Kept in the Problem's cache, tied to its data
+    object (the cache is shared by every Model of one structure; another dataset's modes
+    are not modes here)."""
+    record = {np.asarray(m, dtype=float).tobytes(): float(lp) for m, lp in zip(modes, lps)}
+    problem.cache[FOUND_MODES] = (problem.data, record)
+
+
+def known_mode(problem, x) -> float | None:
+    """The log density of ``x`` where it is a mode remembered on this Problem's data, else None."""
+    data, record = problem.cache.get(FOUND_MODES, (None, {}))
+    if data is not problem.data:
+        return None
+    return record.get(np.asarray(x, dtype=float).tobytes())
+
+
+FOUND_MODES = "modes-found"  # problem.cache key of ``remember_modes``
 
 
 MINOR_MODE = 10.0  # log-density units below the best mode: a basin with a negligible share
@@ -242,7 +305,7 @@ def laplace_sqrt(problem, mode) -> np.ndarray:
 
 LAPLACE_HINT = ("to sample the posterior from this mode instead, add `--fallback rmh` to "
                 "`infer --backend map` (random-walk Metropolis, as `refine` does; in Python "
-                "physdsl.diagnose.rank.fit_with_fallback), or sample with --backend nuts; or "
+                "physdsl.infer(model, 'map', fallback='rmh')), or sample with --backend nuts; or "
                 "give the unknowns named above a value or a tighter prior")
 
 
@@ -287,7 +350,11 @@ class MAP(Backend):
         contact's kink) or at a point with no Laplace approximation takes the best mode
         instead; only a best mode without one is an error."""
         steps = max(settings.warmup, 50)  # one optimisation per start: on_block(1) after each
-        modes, lps, best = major_modes(problem, find_modes(problem, positions, steps, on_block))
+        modes = np.asarray(find_modes(problem, positions, steps, on_block))
+        known = [known_mode(problem, m) for m in modes]  # the multistart's: values known
+        value = value_fn(problem)
+        lps = [float(value(jnp.asarray(m))) if lp is None else lp for m, lp in zip(modes, known)]
+        modes, lps, best = major_modes(problem, modes, lps=lps)
         if on_laplace is not None:
             on_laplace()
         try:
