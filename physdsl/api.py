@@ -9,14 +9,17 @@ call; the command line (``physdsl.cli``) calls only these.
 from __future__ import annotations
 
 import difflib
+import time
 from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 
-from . import mjcf, syntax
+from . import io, mjcf, syntax
 from .compile import Model, load_source
 from .compile import compile as _compile
+from .control import ControlProblem, Plan, build as _control_problem, optimise as _optimise
+from .control.output import write_plan
 from .design.experiment import OBJECTIVES, Proposal, design, require_unknown
 from .diagnose.candidates import Candidate
 from .diagnose.edits import load_text, with_effect
@@ -27,6 +30,7 @@ from .diagnose.refine import Round
 from .diagnose.refine import refine as _refine
 from .diagnose.workflow import check_model, point_estimate
 from .errors import PhysNameError, UsageError
+from .goal import Goal
 from .export import export as _export
 from .infer.fit import fit_with_fallback
 from .infer.init import start_setting, start_values
@@ -42,7 +46,7 @@ from .track import Tracked, track_source
 __all__ = [
     "load", "compile", "infer", "check", "diagnose", "refine", "add_effect", "design_experiment",
     "render", "render_draws", "track", "export", "export_mjcf", "sample", "read_run",
-    "import_model", "format_source",
+    "import_model", "format_source", "control",
 ]
 
 format_source = syntax.format_source
@@ -116,6 +120,25 @@ def add_effect(scene: Scene, effect: str, target: str | Sequence[str]) -> Scene:
                             "known effects: " + ", ".join(sorted(scene.effect_library)))
     parts = target.strip("()").split(",") if isinstance(target, str) else target
     return load_text(scene, with_effect(scene, Candidate("effect", effect, tuple(t.strip() for t in parts))))
+
+
+def control(model: Model, goal: Goal | None = None, idata=None, *, outdir: str | Path | None = None,
+            force: bool = False, draws: int = 16, steps: int = 200, on_step=None
+            ) -> tuple[ControlProblem, Plan]:
+    """Choose the scene's unknown control sequences and the goal's decisions so ``goal`` (default:
+    the scene's ``goal`` block) is met: L-BFGS through the rollout from screened prior draws;
+    with a posterior ``idata``, the expected cost over up to ``draws`` of its draws. Files
+    (controls CSV, planned.phys, predicted.csv, cost.png, plan.json) in ``outdir`` if given."""
+    goal = goal if goal is not None else getattr(model.scene, "goal", None)
+    if goal is None:
+        raise UsageError("the scene has no goal", hint="add a `goal { ... }` block (docs/control.md)")
+    started = time.perf_counter()
+    problem = _control_problem(model, goal, idata=idata, draws=draws)
+    plan = _optimise(problem, steps=steps, on_step=on_step)
+    if outdir is not None:
+        io.prepare_outdir(outdir, force=force)
+        write_plan(problem, plan, Path(outdir), time.perf_counter() - started)
+    return problem, plan
 
 
 def _fitted_values(model: Model, idata=None) -> dict:

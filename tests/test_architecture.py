@@ -22,7 +22,7 @@ FLOORS = (
     ("infer", "track"),
     ("compile", "mjcf"),
     ("syntax", "physics", "observe", "render"),
-    ("scene",),
+    ("scene", "goal"),
     ("errors", "expr", "io", "media", "cache", "registry", "version"),
 )
 

@@ -1,0 +1,138 @@
+"""A goal as a cost on a rollout: pure JAX functions of (rollout, values), differentiable through
+the physics (contacts included), and the goal's errors in the user's units.
+
+Reach and Hold terms are squared errors divided by their tolerance (dimensionless, so terms
+add); Effort is ``weight * sum_k u_k^2 dt_k`` over the chosen control sequences (zero-order hold).
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax.numpy as jnp
+import numpy as np
+
+from ..errors import ModelError
+from ..expr import evaluate
+from ..goal import Effort, Goal, Hold, Reach
+from ..scene import Scene
+
+CONTROL = "control_force"
+
+
+class Track(NamedTuple):
+    """Where a Reach term reads its position: a body's or a marker's column of the rollout."""
+
+    markers: bool
+    index: int
+
+
+def control_effects(scene: Scene) -> dict[str, object]:
+    """The control uses of ``scene`` by the name of their unknown sequence: ``control_force@T.values``."""
+    return {f"{use.key}.values": use for use in scene.effects if use.effect == CONTROL}
+
+
+def track_of(scene: Scene, body_names, marker_names, term: Reach) -> Track:
+    """The rollout column of a Reach term's target (a body or a marker), or a located error."""
+    if term.target in body_names:
+        return Track(False, list(body_names).index(term.target))
+    if term.target in marker_names:
+        return Track(True, list(marker_names).index(term.target))
+    raise ModelError(f"goal: '{term.target}' is neither a body nor a marker of the scene",
+                     span=term.span, hint=f"bodies: {', '.join(body_names)}")
+
+
+def check_goal(scene: Scene, simulator, goal: Goal) -> None:
+    """Raise a located ModelError for a term the scene cannot evaluate."""
+    end = float(simulator.times[-1])
+    for term in goal.terms:
+        if isinstance(term, Reach):
+            track_of(scene, simulator.body_names, simulator.marker_names, term)
+            _check_time(term.at, end, term.span)
+            _check_tolerance(term.within, term.span)
+        elif isinstance(term, Hold):
+            if term.joint not in simulator.joint_names:
+                raise ModelError(f"goal: '{term.joint}' is not a joint of the scene", span=term.span,
+                                 hint=f"joints: {', '.join(simulator.joint_names) or 'none'}")
+            if not term.start < term.end:
+                raise ModelError("goal: a hold window must end after it starts", span=term.span)
+            _check_time(term.end, end, term.span)
+            _check_tolerance(term.within, term.span)
+        elif isinstance(term, Effort) and term.weight < 0:
+            raise ModelError("goal: an effort weight cannot be negative", span=term.span)
+
+
+def _check_time(t: float, end: float, span) -> None:
+    if not 0.0 <= t <= end + 1e-12:
+        raise ModelError(f"goal: time {t:g} s lies outside the simulated 0 .. {end:g} s", span=span,
+                         hint="set `world { duration: ... }` to simulate longer")
+
+
+def _check_tolerance(within: float, span) -> None:
+    if not within > 0:
+        raise ModelError("goal: a tolerance ('within') must be positive", span=span)
+
+
+def position_at(rollout, times, track: Track, t: float):
+    """Position (3,) of a body or marker at time ``t``, linear between recorded steps."""
+    column = (rollout.marker_pos if track.markers else rollout.body_pos)[:, track.index]
+    return jnp.stack([jnp.interp(t, times, column[:, k]) for k in range(3)])
+
+
+def effort(scene: Scene, values, chosen: tuple[str, ...]):
+    """Sum over chosen control sequences of ∫ (gain * values(t))² dt, zero-order hold to the end."""
+    uses = control_effects(scene)
+    total = jnp.zeros(())
+    for name in chosen:
+        use = uses.get(name)
+        if use is None:
+            continue
+        times = np.asarray(use.tables["times"], dtype=float)
+        held = np.diff(np.append(times, max(scene.duration, float(times[-1]))))
+        gain = evaluate(use.params["gain"], values) if "gain" in use.params else 1.0
+        u = gain * jnp.asarray(values[name])
+        total = total + jnp.sum(jnp.reshape(u ** 2, (len(times), -1)).sum(axis=1) * held)
+    return total
+
+
+def term_errors(scene: Scene, simulator, goal: Goal, rollout, values) -> list:
+    """Each Reach/Hold term's error in its own unit (m, or rad/m for a joint); Effort: its integral."""
+    times = jnp.asarray(simulator.times)
+    out = []
+    for term in goal.terms:
+        if isinstance(term, Reach):
+            track = track_of(scene, simulator.body_names, simulator.marker_names, term)
+            out.append(jnp.linalg.norm(position_at(rollout, times, track, term.at)
+                                       - jnp.asarray(term.point)))
+        elif isinstance(term, Hold):
+            j = list(simulator.joint_names).index(term.joint)
+            window = (simulator.times >= term.start - 1e-12) & (simulator.times <= term.end + 1e-12)
+            out.append(jnp.max(jnp.abs(rollout.joint_pos[np.flatnonzero(window), j] - term.value)))
+        else:
+            out.append(effort(scene, values, tuple(control_effects(scene))))
+    return out
+
+
+def goal_cost(scene: Scene, simulator, goal: Goal, rollout, values, chosen: tuple[str, ...]):
+    """The scalar cost: Σ (error / within)² over Reach terms, mean of the same over each Hold
+    window, plus weight × effort."""
+    times = jnp.asarray(simulator.times)
+    cost = jnp.zeros(())
+    for term in goal.terms:
+        if isinstance(term, Reach):
+            track = track_of(scene, simulator.body_names, simulator.marker_names, term)
+            miss = position_at(rollout, times, track, term.at) - jnp.asarray(term.point)
+            cost = cost + jnp.sum(miss ** 2) / term.within ** 2
+        elif isinstance(term, Hold):
+            j = list(simulator.joint_names).index(term.joint)
+            window = np.flatnonzero((simulator.times >= term.start - 1e-12)
+                                    & (simulator.times <= term.end + 1e-12))
+            miss = rollout.joint_pos[window, j] - term.value
+            cost = cost + jnp.mean(miss ** 2) / term.within ** 2
+        elif isinstance(term, Effort):
+            cost = cost + term.weight * effort(scene, values, chosen)
+    return cost
+
+
+def met(goal: Goal, errors) -> bool:
+    """Whether every Reach and Hold term is within its tolerance."""
+    return all(float(e) <= t.within for t, e in zip(goal.terms, errors) if isinstance(t, (Reach, Hold)))
