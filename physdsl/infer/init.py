@@ -1,14 +1,13 @@
 """Start values given by a user (``--init name=value[,name=value]``), read like scene values.
 
-Each value is parsed by the scene grammar and resolved by the scene resolver (units,
-dimensions, vectors), then checked against its unknown (name, dimension, shape, the prior's
+Each value is parsed by the scene grammar and translated like a scene's values
+(``syntax.expressions.to_expr``: units, dimensions, vectors), then checked against its unknown (name, dimension, shape, the prior's
 support). Errors are PhysErrors placed in the ``--init`` text itself (file ``--init``, line 1,
 a caret under the offending part), so they read like errors in a scene file.
 """
 from __future__ import annotations
 
 from dataclasses import replace
-from pathlib import Path
 
 import jax
 import numpy as np
@@ -18,9 +17,10 @@ from ..errors import (InferenceError, PhysError, PhysNameError, PhysTypeError, P
 from ..expr import evaluate, is_constant
 from ..syntax import ast
 from ..syntax.dists import constraint_words, find, satisfies
+from ..syntax.expressions import to_expr
 from ..syntax.parser import parse_field
-from ..syntax.resolve import Resolver, close
 from ..syntax.units import parse_unit
+from ..syntax.words import close
 from .base import value_and_grad_fn
 from .problem import model_problem, start_position
 
@@ -130,8 +130,7 @@ def _value(text: str, offset: int, value: str, unknown) -> np.ndarray:
         if isinstance(node, ast.Dist):
             raise PhysTypeError("a start value is a value, not '~ dist(...)'",
                                 Span(SOURCE, 1, col + 1, 1, col + len(body) + 1))
-        resolver = Resolver(ast.Module((), filename=SOURCE), src, Path.cwd(), None)
-        r = resolver.expr(node)
+        r = to_expr(node)  # numbers with units: no names but pi
         if not is_constant(r.expr):
             raise PhysTypeError("a start value must be a number with a unit, not an expression "
                                 "of other values", Span(SOURCE, 1, col + 1, 1, col + len(body) + 1))
