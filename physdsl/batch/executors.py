@@ -112,7 +112,9 @@ def _connect(ray, address: str | None, workers: int | None) -> None:
     except (ConnectionError, RuntimeError, ValueError) as ex:
         raise UsageError(f"cannot reach a Ray cluster at {address or 'this machine'}: {ex}",
                          hint="start its head with `ray start --head --port PORT` and pass "
-                              "--address HOST:PORT") from None
+                              "--address HOST:PORT; a cluster with token authentication also "
+                              "needs RAY_AUTH_MODE=token here (the token in ~/.ray/auth_token "
+                              "or RAY_AUTH_TOKEN)") from None
 
 
 def make_executor(name: str, address: str | None = None, workers: int | None = None,

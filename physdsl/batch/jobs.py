@@ -22,12 +22,8 @@ from typing import Iterator
 
 import jax
 
-from .. import cache, io
-from ..compile import compile as compile_scene
-from ..diagnose.refine import refine
+from .. import api, cache, io
 from ..errors import PhysError
-from ..infer.run import infer
-from ..sample import sample
 
 DONE = "job.json"  # the done marker, written last
 FAILED = "failed.json"  # a failed attempt's record (the job runs again on restart)
@@ -87,13 +83,14 @@ def _mark_attempt(folder: Path) -> int:
 
 
 def _infer(job: Job, folder: Path) -> None:
-    infer(compile_scene(job.scene), outdir=folder, force=True, progress=False, **job.options)
+    api.infer(api.compile(job.scene), outdir=folder, force=True, progress=False, **job.options)
 
 
 def _refine(job: Job, folder: Path) -> None:
     lines: list[str] = []
     try:
-        refine(job.scene, folder, force=True, progress=False, echo=lines.append, **job.options)
+        api.refine(job.scene, folder, force=True, progress=False, echo=lines.append,
+                   **job.options)
     finally:
         if folder.is_dir():
             io.write_text(folder / "refine.log", "\n".join(lines) + "\n")
@@ -101,7 +98,7 @@ def _refine(job: Job, folder: Path) -> None:
 
 def _sample(job: Job, folder: Path) -> None:
     options = dict(job.options)
-    sample(job.scene, options.pop("n"), outdir=folder, force=True, **options)
+    api.sample(job.scene, options.pop("n"), outdir=folder, force=True, **options)
 
 
 RUNNERS = {"infer": _infer, "refine": _refine, "sample": _sample}

@@ -18,8 +18,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ..infer.conftest import write_trajectory_csv
-
 TOSS = """\
 scene toss {
   world {
@@ -62,7 +60,8 @@ def write_scene(folder: Path, i: int) -> Path:
     v = truth(i)
     x = (np.array([0.0, 0.0, 1.0]) + np.outer(TIMES, v) - 0.5 * 9.81 * np.outer(TIMES**2, [0, 0, 1])
          + np.random.default_rng(i).normal(0.0, NOISE, (len(TIMES), 3)))
-    write_trajectory_csv(folder / "data.csv", TIMES, x)
+    rows = [f"{t:.6f},ball,{a:.9g},{b:.9g},{c:.9g}" for t, (a, b, c) in zip(TIMES, x)]
+    (folder / "data.csv").write_text("\n".join(["t,body,x,y,z", *rows]) + "\n")
     (folder / "scene.phys").write_text(TOSS)
     return folder / "scene.phys"
 

@@ -5,6 +5,7 @@ completes exactly once."""
 from __future__ import annotations
 
 import os
+import secrets
 import signal
 import socket
 import subprocess
@@ -21,6 +22,9 @@ pytest.importorskip("ray", reason="ray is not installed: pip install 'physdsl[ra
                                   "(.ci/run installs it)")
 
 
+AUTH = ("RAY_AUTH_MODE", "RAY_AUTH_TOKEN", "RAY_AUTH_TOKEN_PATH")
+
+
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -29,7 +33,13 @@ def _free_port() -> int:
 
 @pytest.fixture(scope="module")
 def ray_head(tmp_path_factory):
-    """A Ray head on this machine (``ray start --head --block``); its address HOST:PORT."""
+    """A Ray head on this machine (``ray start --head --block``); its address HOST:PORT.
+
+    With a token of its own (Ray's token authentication, set in this process's environment,
+    which the head, its workers and the batches started here inherit; older Rays ignore it)."""
+    saved = {k: os.environ.get(k) for k in AUTH}
+    os.environ.update(RAY_AUTH_MODE="token", RAY_AUTH_TOKEN=secrets.token_hex(32))
+    os.environ.pop("RAY_AUTH_TOKEN_PATH", None)
     port = _free_port()
     log = tmp_path_factory.mktemp("ray") / "head.log"
     with open(log, "w") as sink:
@@ -51,6 +61,8 @@ def ray_head(tmp_path_factory):
             head.wait(timeout=90)
         except subprocess.TimeoutExpired:
             head.kill()
+        for key, value in saved.items():
+            os.environ.pop(key, None) if value is None else os.environ.update({key: value})
 
 
 def _ray_batch(scenes: Path, out: Path, address: str) -> list[str]:
@@ -94,7 +106,8 @@ def _kill_a_running_job(out: Path, batch: subprocess.Popen) -> str:
             os.kill(pid, signal.SIGKILL)
             return marker.parent.name
         time.sleep(0.02)
-    raise AssertionError("no job was caught running")
+    out_, err = batch.communicate(timeout=600)
+    raise AssertionError(f"no job was caught running (exit {batch.returncode}):\n{out_}\n{err}")
 
 
 def test_a_killed_worker_job_is_retried_and_every_job_completes_once(ray_head, scenes,
