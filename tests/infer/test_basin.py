@@ -17,6 +17,7 @@ from .test_multistart import throw  # noqa: F401 - the fixture
 # with a large constant (the normalisation of a long recording, -sum log(sigma sqrt(2 pi))):
 # the old test "a step gains < 1e-10 |log p|" (1e-4 here) stopped 5.8e-4 short in chi^2
 OFFSET = 1e6
+DRAG = "linear_drag@ball.coefficient"
 
 
 def _residuals(x):
@@ -92,3 +93,24 @@ def test_multistart_modes_go_to_map_without_a_second_search(throw, monkeypatch):
     with pytest.raises(AssertionError, match="optimised again"):
         get_backend("map").warmup(other, found.modes, jax.random.PRNGKey(0),
                                   Settings(chains=3, warmup=100))
+
+
+def test_every_other_prior_draw_starts_where_the_data_say(projectile_model):
+    """Four starts: the data's, the prior's centre, a prior draw, and a prior draw whose
+    initial state (the launch velocity) is fitted to the first samples while its physical
+    unknown (the drag) keeps its drawn value: the throw meets what the data show, the drag
+    is spread over its prior."""
+    from physdsl.infer.multistart import start_points
+    from physdsl.infer.problem import make_problem
+
+    problem, x = make_problem(projectile_model, jax.random.PRNGKey(3), 4)
+    starts, labels = start_points(problem, x, jax.random.PRNGKey(4))
+    assert labels == ["data", "prior centre", "prior draw 1", "prior draw 2 + data"]
+    values = [problem.to_constrained(s, problem.data) for s in starts]
+    drawn = problem.to_constrained(x[1], problem.data)
+    np.testing.assert_allclose(np.asarray(values[3]["ball.velocity"]),
+                               np.asarray(values[0]["ball.velocity"]), atol=0.05)
+    assert not np.allclose(np.asarray(drawn["ball.velocity"]),
+                           np.asarray(values[0]["ball.velocity"]), atol=0.05)
+    np.testing.assert_allclose(float(values[3][DRAG]), float(drawn[DRAG]), rtol=1e-12)
+    np.testing.assert_allclose(starts[2], x[0])
