@@ -24,6 +24,7 @@ import numpy as np
 
 from .errors import Span
 from .expr import Expr
+from .goal import Goal
 
 
 @dataclass(frozen=True)
@@ -296,6 +297,7 @@ class Scene:
     path: Path | None = None
     source: str = ""
     markers: tuple[Marker, ...] = ()
+    goal: Goal | None = None  # the scene's ``goal { ... }`` (physdsl.control meets it)
 
     def body(self, name: str) -> Body:
         return next(b for b in self.bodies if b.name == name)

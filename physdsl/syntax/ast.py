@@ -267,8 +267,50 @@ class ForLoop:
     span: Span | None = None
 
 
+@dataclass(frozen=True)
+class ReachTerm:
+    """``ball.position at 1 s -> (2, 0, 0) m within 5 cm``: a point reached at a time."""
+
+    target: str
+    quantity: str
+    at: Expr
+    point: Expr
+    within: Expr
+    span: Span | None = None
+
+
+@dataclass(frozen=True)
+class HoldTerm:
+    """``hinge.angle from 2 s to 5 s -> 180 deg within 0.1 rad``: a joint held over a window."""
+
+    target: str
+    quantity: str
+    start: Expr
+    end: Expr
+    value: Expr
+    within: Expr
+    span: Span | None = None
+
+
+@dataclass(frozen=True)
+class GoalField:
+    """``effort: 1e-3`` or ``decide: vx, vy``: a key with one or more values."""
+
+    key: str
+    values: tuple[Expr, ...]
+    span: Span | None = None
+
+
+@dataclass(frozen=True)
+class GoalItem:
+    """``goal { TERM ... }``: what should happen (``syntax/goals.py`` builds a ``goal.Goal``)."""
+
+    terms: tuple[Union[ReachTerm, HoldTerm, GoalField], ...]
+    span: Span | None = None
+
+
 Item = Union[Param, WorldItem, BodyItem, JointItem, ContactItem, EffectItem, ControlItem,
-             CameraItem, LightItem, ObserveItem, MarkerItem, AliasItem, ForLoop]
+             CameraItem, LightItem, ObserveItem, MarkerItem, AliasItem, ForLoop, GoalItem]
 
 
 @dataclass(frozen=True)

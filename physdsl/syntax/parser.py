@@ -119,6 +119,20 @@ class _ToAst(Transformer):
         start, stop = (int(x) for x in str(ch[1]).split(".."))
         return ast.ForLoop(str(ch[0]), start, stop, tuple(ch[2:]), self._s(meta))
 
+    def goal(self, meta, ch):
+        return ast.GoalItem(tuple(ch), self._s(meta))
+
+    def goal_reach(self, meta, ch):
+        target, quantity = str(ch[0]).split(".")
+        return ast.ReachTerm(target, quantity, ch[1], ch[2], ch[3], self._s(meta))
+
+    def goal_hold(self, meta, ch):
+        target, quantity = str(ch[0]).split(".")
+        return ast.HoldTerm(target, quantity, ch[1], ch[2], ch[3], ch[4], self._s(meta))
+
+    def goal_field(self, meta, ch):
+        return ast.GoalField(str(ch[0]), tuple(ch[1:]), self._s(meta))
+
     def where(self, meta, ch):
         value = unquote(ch[1]) if ch[1].type == "STRING" else str(ch[1])
         return (str(ch[0]), value)
@@ -296,12 +310,13 @@ _WORDS = {
     "$END": "the end of the file",
     "SIDE": "'above' or 'below'",
     "VECTOR": "'vector'",
+    "GOAL_TARGET": "a goal term ('ITEM.QUANTITY at ...' or 'ITEM.QUANTITY from ...')",
 }
 _VALUE_START = {"NUMBER", "NAME", "LPAR", "MINUS", "PLUS", "STRING"}
 _VALUE_WORDS = "a value (number, vector, name or '~ dist(...)')"
 _ITEM_WORDS = {"scene", "world", "param", "body", "ground", "joint", "contact", "effect",
                "control", "camera", "light", "observe", "import", "effect_type", "marker",
-               "for", "alias"}
+               "for", "alias", "goal"}
 
 
 def _term_words(name: str) -> str:
@@ -379,6 +394,27 @@ def _offset(text: str, line: int, column: int) -> int:
     return sum(len(r) + 1 for r in rows[: max(line - 1, 0)]) + max(column - 1, 0)
 
 
+_GOAL_TERMS = ("goal terms, one after another without commas: 'BODY.position at T -> (x, y, z) m "
+               "within TOL', 'JOINT.angle from T0 to T1 -> VALUE within TOL', 'effort: W', "
+               "'decide: NAME, ...'")
+
+
+def _goal_syntax_error(tok, expected: set[str], found: str, span: Span,
+                       text: str) -> PhysSyntaxError | None:
+    """The error in words for a mistake in or around a ``goal`` block (None: not one)."""
+    if tok is not None and str(tok) == "goal" and "GOAL" not in expected:
+        return PhysSyntaxError("a goal block sits directly in the scene, not inside another "
+                               "item or a loop", span, "move 'goal { ... }' to the scene's top "
+                               "level", source=text)
+    if "GOAL_TARGET" in expected:
+        return PhysSyntaxError(f"expected a goal term or '}}', found {found}", span, _GOAL_TERMS,
+                               source=text)
+    if "WITHIN" in expected and len(expected - {"WITHIN", "UNIT"}) <= 6:
+        return PhysSyntaxError(f"expected 'within', found {found}", span, "a goal term ends "
+                               "with its tolerance: ... -> VALUE within 1 cm", source=text)
+    return None
+
+
 def syntax_error(ex: UnexpectedInput, text: str, filename: str) -> PhysSyntaxError:
     """Turn a Lark error into a PhysSyntaxError that says what was expected, in words."""
     line = getattr(ex, "line", None) or 1
@@ -403,6 +439,9 @@ def syntax_error(ex: UnexpectedInput, text: str, filename: str) -> PhysSyntaxErr
     else:
         span = Span(filename, line, column, line, column + 1)
     found = _found(tok)
+    goal = _goal_syntax_error(tok, expected, found, span, text)
+    if goal is not None:
+        return goal
     is_item_word = tok is not None and str(tok) in _ITEM_WORDS
     if "RBRACE" in expected and (tok is None or is_item_word):
         opened = _open_block(text, _offset(text, span.line, span.column))

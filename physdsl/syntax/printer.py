@@ -119,6 +119,17 @@ def format_prior(p) -> str:
     return f"{p.dist}({', '.join(args)})"
 
 
+def format_goal_term(t) -> str:
+    """One line of a ``goal`` block: a reach, a hold, or ``key: value, ...``."""
+    if isinstance(t, ast.ReachTerm):
+        return (f"{t.target}.{t.quantity} at {format_expr(t.at)} -> {format_expr(t.point)} "
+                f"within {format_expr(t.within)}")
+    if isinstance(t, ast.HoldTerm):
+        return (f"{t.target}.{t.quantity} from {format_expr(t.start)} to {format_expr(t.end)} "
+                f"-> {format_expr(t.value)} within {format_expr(t.within)}")
+    return f"{t.key}: " + ", ".join(format_expr(v) for v in t.values)
+
+
 # ---- items with comments -------------------------------------------------------------------
 
 def _start(node):
@@ -263,6 +274,10 @@ class _Printer:
             self.leaf(f"alias {it.name} = {it.target}", it, indent)
         elif isinstance(it, ast.ForLoop):
             self.loop(it, indent)
+        elif isinstance(it, ast.GoalItem):
+            self.container("goal", it.terms, it, indent)
+        elif isinstance(it, (ast.ReachTerm, ast.HoldTerm, ast.GoalField)):
+            self.leaf(format_goal_term(it), it, indent)
         elif isinstance(it, ast.SceneDecl):
             self.container(f"scene {it.name}", it.items, it, indent)
         elif isinstance(it, ast.EffectType):

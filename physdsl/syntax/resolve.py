@@ -17,6 +17,7 @@ from .bodies import build_body, declare_body
 from .bounds import Bounds
 from .context import Resolver
 from .effects import contact_pairs, effect_decl, scene_effects
+from .goals import scene_goal
 from .joints import build_joint, check_tree, declare_joint
 from .library import load_library
 from .loops import annotate, expand, place
@@ -133,7 +134,8 @@ def build(res: Resolver, scene: ast.SceneDecl) -> Scene:
     unknowns = used_in(res)
     return Scene(scene.name, world, tuple(bodies), tuple(joints), tuple(effects),
                  tuple(observations), tuple(cameras), tuple(unknowns), tuple(pairs), light,
-                 dict(res.effect_library), res.path, res.source, tuple(markers))
+                 dict(res.effect_library), res.path, res.source, tuple(markers),
+                 scene_goal(res, scene.items))
 
 
 def used_in(res: Resolver) -> list[Unknown]:
