@@ -117,14 +117,17 @@ def _connect(ray, address: str | None, workers: int | None) -> None:
                               "or RAY_AUTH_TOKEN)") from None
 
 
+def check_executor(name: str, address: str | None = None) -> None:
+    """Refuse an unknown executor, or an address without Ray (before anything runs)."""
+    if name not in EXECUTORS:
+        raise UsageError(f"unknown executor '{name}'", hint="local (default) or ray")
+    if name == "local" and address:
+        raise UsageError("--address goes with --executor ray",
+                         hint="add --executor ray, or leave --address out")
+
+
 def make_executor(name: str, address: str | None = None, workers: int | None = None,
                   retries: int = 3) -> Executor:
     """The executor called ``name`` (``local`` or ``ray``)."""
-    if name not in EXECUTORS:
-        raise UsageError(f"unknown executor '{name}'", hint="local (default) or ray")
-    if name == "local":
-        if address:
-            raise UsageError("--address goes with --executor ray",
-                             hint="add --executor ray, or leave --address out")
-        return LocalExecutor(workers)
-    return RayExecutor(address, workers, retries)
+    check_executor(name, address)
+    return LocalExecutor(workers) if name == "local" else RayExecutor(address, workers, retries)

@@ -19,7 +19,7 @@ from typing import Iterable
 
 from .. import cache, io
 from ..errors import UsageError
-from .executors import Executor, make_executor
+from .executors import Executor, check_executor, make_executor
 from .jobs import DONE, FAILED, ATTEMPTS, Job, is_done, run_job
 from .progress import BatchProgress
 
@@ -105,6 +105,8 @@ def run_batch(command: str, patterns: Iterable[str], out: str | os.PathLike,
     earlier run into ``out`` are skipped (``force``: all run again)."""
     out, options = Path(out), dict(options or {})
     patterns = list(patterns)
+    if isinstance(executor, str):
+        check_executor(executor, address)
     jobs = plan(command, patterns, out, options, force)
     if force:
         for job in jobs:
@@ -114,8 +116,8 @@ def run_batch(command: str, patterns: Iterable[str], out: str | os.PathLike,
     for job in todo:
         shutil.rmtree(job.attempts, ignore_errors=True)
     out.mkdir(parents=True, exist_ok=True)
-    head = dict(_settings(command, options), scenes=patterns, cache_dir=todo[0].cache_dir
-                if todo else jobs[0].cache_dir, started=time.strftime("%Y-%m-%dT%H:%M:%S%z"))
+    head = dict(_settings(command, options), scenes=patterns, cache_dir=jobs[0].cache_dir,
+                started=time.strftime("%Y-%m-%dT%H:%M:%S%z"))
     skipped = [dict(_read_record(job), skipped=True) for job in finished]
     records: list[dict] = []
     start = time.perf_counter()
@@ -129,8 +131,8 @@ def run_batch(command: str, patterns: Iterable[str], out: str | os.PathLike,
             head["executor"] = pool.describe()
         _write_summary(out, head, skipped, records, start, "running")
         if todo:
-            records = _collect(pool, todo, out, head, skipped, start,
-                               BatchProgress(len(todo), len(finished), enabled=progress))
+            _collect(pool, todo, out, head, skipped, records, start,
+                     BatchProgress(len(todo), len(finished), enabled=progress))
     except KeyboardInterrupt:
         if pool is not None:
             pool.shutdown(cancel=True)
@@ -144,11 +146,11 @@ def run_batch(command: str, patterns: Iterable[str], out: str | os.PathLike,
 
 
 def _collect(pool: Executor, todo: list[Job], out: Path, head: dict, skipped: list[dict],
-             start: float, shown: BatchProgress) -> list[dict]:
-    """Submit every job, gather their records as they finish (the summary kept up to date)."""
+             records: list[dict], start: float, shown: BatchProgress) -> None:
+    """Submit every job; add their records to ``records`` as they finish (the summary kept
+    up to date, also when the batch is interrupted)."""
     futures: dict[Future, Job] = {pool.submit(run_job, job): job for job in todo}
     pending = set(futures)
-    records: list[dict] = []
     try:
         while pending:
             ended, pending = wait(pending, timeout=0.5, return_when=FIRST_COMPLETED)
@@ -160,7 +162,6 @@ def _collect(pool: Executor, todo: list[Job], out: Path, head: dict, skipped: li
             shown.update(running=min(len(pending), pool.slots))
     finally:
         shown.close()
-    return records
 
 
 def _record_of(future: Future, job: Job) -> dict:

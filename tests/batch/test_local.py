@@ -75,7 +75,7 @@ def test_usage_errors_exit_2(scenes, tmp_path, capsys, args, message):
     code = main(["batch", "infer", "-o", str(tmp_path / "out"), *FIT, *args])
     assert code == 2
     assert message in capsys.readouterr().err
-    assert not (tmp_path / "out" / "batch.json").exists()
+    assert not (tmp_path / "out").exists()  # refused before anything was written
 
 
 def test_job_names_follow_the_scene_folders():
