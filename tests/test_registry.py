@@ -9,6 +9,8 @@ import numpyro.distributions as nd
 import pytest
 
 from physdsl.infer.base import BACKENDS
+from physdsl.observe.kinds import OBSERVATION_KINDS
+from physdsl.observe.sensor import SENSOR_FAULTS
 from physdsl.physics.contact_models import CONTACT_MODELS
 from physdsl.physics.effects import EFFECTS
 from physdsl.physics.effects.base import declaration_text
@@ -78,3 +80,8 @@ def test_the_builtin_entries_register_themselves():
     assert BACKENDS.origin("map") == "physdsl.infer.backends.map"
     assert find("normal") is nd.Normal and find("half_normal") is DISTRIBUTIONS["half_normal"]
     assert {"lcp", "compliant"} == set(CONTACT_MODELS)
+    assert list(SENSOR_FAULTS) == ["delay", "gain", "offset"]  # the order they are applied in
+    assert [SENSOR_FAULTS[k].off for k in SENSOR_FAULTS] == [0.0, 1.0, 0.0]
+    assert {"position", "orientation", "velocity", "angular_velocity", "angle",
+            "angular_rate"} == set(OBSERVATION_KINDS)
+    assert OBSERVATION_KINDS["angle"][3:5] == (("angle",), "rad")  # columns, unit (the language's)

@@ -15,17 +15,10 @@ import numpy as np
 
 from ..errors import DataError
 from ..scene import Observation
+from .kinds import OBSERVATION_KINDS, ObservationKind, register_kind
 
-# quantity -> (source, number of measured columns, residual axis names, the data's columns,
-# SI unit: a slider's joint quantities read rad as m); the language reads this table too
-QUANTITIES = {
-    "position": ("body_pos", 3, ("x", "y", "z"), ("x", "y", "z"), "m"),
-    "orientation": ("body_quat", 4, ("rx", "ry", "rz"), ("qw", "qx", "qy", "qz"), "1"),
-    "velocity": ("body_vel", 3, ("vx", "vy", "vz"), ("vx", "vy", "vz"), "m/s"),
-    "angular_velocity": ("body_angvel", 3, ("wx", "wy", "wz"), ("wx", "wy", "wz"), "rad/s"),
-    "angle": ("joint_pos", 1, ("angle",), ("angle",), "rad"),
-    "angular_rate": ("joint_vel", 1, ("rate",), ("rate",), "rad/s"),
-}
+# the observation kinds (``kinds.OBSERVATION_KINDS``), by name; the language reads them too
+QUANTITIES = OBSERVATION_KINDS
 
 
 @dataclass(frozen=True)
@@ -60,15 +53,12 @@ def interpolation(grid: np.ndarray, times: np.ndarray, file: str = "") -> Interp
     return Interpolation(np.concatenate([lo, hi]).astype(np.int32), w)
 
 
-# a marker's quantity -> its Rollout field
-MARKER_SOURCES = {"position": "marker_pos", "velocity": "marker_vel"}
-
-
 def source(obs: Observation, simulator) -> str:
     """The Rollout field that ``obs`` is read from."""
+    kind = OBSERVATION_KINDS[obs.quantity]
     if obs.target in getattr(simulator, "marker_names", ()):
-        return MARKER_SOURCES[obs.quantity]
-    return QUANTITIES[obs.quantity][0]
+        return kind.marker_source
+    return kind.source
 
 
 def model_track(rollout, simulator, obs: Observation):
@@ -89,7 +79,7 @@ def predict(rollout, simulator, obs: Observation, interp: Interpolation):
     n = len(interp.w)
     rows = track[jnp.asarray(interp.rows)]
     out = rows[:n] * (1 - w) + rows[n:] * w
-    if obs.quantity == "orientation":
+    if OBSERVATION_KINDS[obs.quantity].normalise:
         out = out / jnp.linalg.norm(out, axis=-1, keepdims=True)
     return out
 
@@ -114,23 +104,46 @@ def rotation_vector(q):
     return v * scale
 
 
+def wrapped(predicted, measured):
+    """measured - predicted wrapped to (-pi, pi]: the residual of an angle."""
+    diff = measured - predicted
+    return jnp.arctan2(jnp.sin(diff), jnp.cos(diff))
+
+
+def rotation_residual(predicted, measured):
+    """The rotation vector of q_pred^-1 q_meas: the residual of an orientation."""
+    return rotation_vector(_quat_conj_mul(predicted, measured))
+
+
 def residual(quantity: str, predicted, measured):
     """measured - predicted in the quantity's own geometry: (N, K)."""
-    if quantity == "orientation":
-        return rotation_vector(_quat_conj_mul(predicted, measured))
-    diff = measured - predicted
-    if quantity == "angle":
-        diff = jnp.arctan2(jnp.sin(diff), jnp.cos(diff))
-    return diff
+    return OBSERVATION_KINDS[quantity].residual(predicted, measured)
 
 
 def residual_mask(obs: Observation) -> np.ndarray:
-    """(N, K) mask of residual components that were measured."""
-    if obs.quantity == "orientation":
+    """(N, K) mask of residual components that were measured (a residual of fewer components
+    than the measurement, an orientation's, needs the whole row)."""
+    k = len(OBSERVATION_KINDS[obs.quantity].axes)
+    if obs.mask.shape[1] != k:
         row = obs.mask.all(axis=1)
-        return np.repeat(row[:, None], 3, axis=1)
+        return np.repeat(row[:, None], k, axis=1)
     return obs.mask
 
 
 def axes(quantity: str) -> tuple[str, ...]:
-    return QUANTITIES[quantity][2]
+    return OBSERVATION_KINDS[quantity].axes
+
+
+for _name, _kind in {
+    "position": ObservationKind("body_pos", 3, ("x", "y", "z"), ("x", "y", "z"), "m",
+                                marker_source="marker_pos"),
+    "orientation": ObservationKind("body_quat", 4, ("rx", "ry", "rz"), ("qw", "qx", "qy", "qz"),
+                                   "1", rotation_residual, normalise=True),
+    "velocity": ObservationKind("body_vel", 3, ("vx", "vy", "vz"), ("vx", "vy", "vz"), "m/s",
+                                marker_source="marker_vel"),
+    "angular_velocity": ObservationKind("body_angvel", 3, ("wx", "wy", "wz"),
+                                        ("wx", "wy", "wz"), "rad/s"),
+    "angle": ObservationKind("joint_pos", 1, ("angle",), ("angle",), "rad", wrapped),
+    "angular_rate": ObservationKind("joint_vel", 1, ("rate",), ("rate",), "rad/s"),
+}.items():
+    register_kind(_name, _kind, __name__)

@@ -21,12 +21,12 @@ import jax.numpy as jnp
 from .effects import EFFECTS
 from .integrate import State, applied_load
 from .kinematics import Kin
-from .model import Model
 from .rows import place, take
 from .spatial import mv, normalize, quat_integrate, quat_to_mat
+from .structure import PhysicsModel
 
 
-def decoupled(model: Model) -> bool:
+def decoupled(model: PhysicsModel) -> bool:
     """Whether ``model``'s free bodies translate and rotate independently (static)."""
     if model.free_bodies is None or model.ncon:
         return False
@@ -45,7 +45,7 @@ class Rotation(NamedTuple):
     w: jnp.ndarray  # (nF, 3) body-frame angular velocities
 
 
-def split(model: Model, q, v) -> tuple[Translation, Rotation]:
+def split(model: PhysicsModel, q, v) -> tuple[Translation, Rotation]:
     """The free-joint coordinates q (..., nq), v (..., nv) as their two parts."""
     nF = len(model.free_bodies)
     qf, vf = q.reshape(*q.shape[:-1], nF, 7), v.reshape(*v.shape[:-1], nF, 6)
@@ -67,7 +67,7 @@ class Frame(NamedTuple):
     zero: jnp.ndarray  # (B, 3)
 
 
-def frame(model: Model, prm: dict) -> Frame | None:
+def frame(model: PhysicsModel, prm: dict) -> Frame | None:
     """The static rows, or None when every body moves (``place`` then reads no row of them)."""
     if tuple(model.free_bodies) == tuple(range(model.nbody)):
         return None
@@ -76,7 +76,7 @@ def frame(model: Model, prm: dict) -> Frame | None:
     return Frame(pos0, com0, jnp.zeros_like(pos0))
 
 
-def _translation_accel(model: Model, prm: dict, fr: Frame | None, x, v, t, t_step):
+def _translation_accel(model: PhysicsModel, prm: dict, fr: Frame | None, x, v, t, t_step):
     """(nF, 3) accelerations of the free bodies: summed central forces over mass."""
     fb = model.free_bodies
     if fr is None:  # every body moves: its rows are all there is
@@ -90,13 +90,13 @@ def _translation_accel(model: Model, prm: dict, fr: Frame | None, x, v, t, t_ste
     return take(load.force, fb) / take(prm["mass"], fb)[:, None]
 
 
-def _rotation_accel(model: Model, prm: dict, w):
+def _rotation_accel(model: PhysicsModel, prm: dict, w):
     """(nF, 3) body-frame angular accelerations without torque: I^-1 (-w x I w)."""
     inertia = take(prm["inertia"], model.free_bodies)
     return mv(prm["free_inv_inertia"], -jnp.cross(w, mv(inertia, w)))
 
 
-def translation_step(model: Model, prm: dict, fr: Frame | None, s: Translation, t,
+def translation_step(model: PhysicsModel, prm: dict, fr: Frame | None, s: Translation, t,
                      h) -> Translation:
     """Advance the translation by h from time t with the scene's integrator."""
     acc = lambda x, v, tt: _translation_accel(model, prm, fr, x, v, tt, t)  # noqa: E731
@@ -116,7 +116,7 @@ def translation_step(model: Model, prm: dict, fr: Frame | None, s: Translation, 
     return Translation(x + h * v_avg, v + h * a_avg)
 
 
-def rotation_step(model: Model, prm: dict, s: Rotation, h) -> Rotation:
+def rotation_step(model: PhysicsModel, prm: dict, s: Rotation, h) -> Rotation:
     """Advance the torque-free rotation by h with the scene's integrator."""
     acc = lambda w: _rotation_accel(model, prm, w)  # noqa: E731
     quat, w = s

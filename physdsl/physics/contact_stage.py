@@ -15,10 +15,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from . import contact as cm
 from .kinematics import Kin
-from .model import Model
 from .rows import place, take
 from .spatial import mtv, mv, normalize, skew
+from .structure import PhysicsModel
 
 
 class Contacts(NamedTuple):
@@ -60,15 +61,13 @@ def _point_jac(kin: Kin, bodies, points):
     return J[:, None, 3:] - jnp.einsum("pkij,pjn->pkin", skew(points), J[:, :3])
 
 
-def detect_all(model: Model, prm: dict, kin: Kin, v=None) -> Contacts:
+def detect_all(model: PhysicsModel, prm: dict, kin: Kin, v=None) -> Contacts:
     """Contact candidates of every pair with their Jacobians and coefficients; with the joint
     velocity ``v``, friction pyramids are aligned with each contact's slip (``tangents``).
 
     Pairs of the same shape kinds are detected together (vmap), so the traced graph grows with
     the number of kind combinations, not with the number of pairs.
     """
-    from . import contact as cm
-
     C, nv = model.ncon, model.nv
     dist = jnp.zeros(C)
     normal = jnp.zeros((C, 3))
@@ -126,7 +125,7 @@ def closing_within(con: Contacts, v_free, h) -> Contacts:
     return con._replace(active=con.active | closing)
 
 
-def _inv_mass(model: Model, prm: dict, kin: Kin, bodies, points, normal):
+def _inv_mass(model: PhysicsModel, prm: dict, kin: Kin, bodies, points, normal):
     """(P, K) contribution 1/m + (r x n).I^-1 (r x n) of free ``bodies`` (P,) to the inverse
     effective mass of contacts at ``points`` (P, K, 3) along ``normal``; 0 for static bodies."""
     fb = model.free_bodies
@@ -138,13 +137,11 @@ def _inv_mass(model: Model, prm: dict, kin: Kin, bodies, points, normal):
     return inv_m[:, None] + jnp.sum(u * mv(inv_i[:, None], u), -1)
 
 
-def compliant_tau(model: Model, con: Contacts, M, v):
+def compliant_tau(model: PhysicsModel, con: Contacts, M, v):
     """Generalized contact forces of the compliant model and the normal force per row.
 
     The effective mass per row comes from ``con.inv_mass`` when set (free bodies: M is not
     needed, pass None), else from one solve with M."""
-    from . import contact as cm
-
     vrel = jnp.einsum("ckn,n->ck", con.J, v)
     vn = jnp.sum(vrel * con.normal, -1)
     vt = vrel - vn[:, None] * con.normal
@@ -161,11 +158,9 @@ def compliant_tau(model: Model, con: Contacts, M, v):
     return tau, fn
 
 
-def lcp_velocity(model: Model, con: Contacts, M, v, v_free, h):
+def lcp_velocity(model: PhysicsModel, con: Contacts, M, v, v_free, h):
     """Next velocity from the LCP step, the velocity that advances positions (with the
     time-of-impact correction, see ``contact.step``) and the normal force (impulse / h) per row."""
-    from . import contact as cm
-
     out = cm.solve_lcp_step(M, v_free, con.Jn, con.Jt, con.mu, con.e, con.Jn @ v, con.dist,
                             con.active, h)
     return out.v, out.v_position, out.lam_n / h

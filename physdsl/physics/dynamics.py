@@ -10,24 +10,24 @@ import jax.numpy as jnp
 from jax.scipy.linalg import cho_factor, cho_solve
 
 from .kinematics import Kin
-from .model import Model
 from .spatial import cross_force, mm, mv
+from .structure import PhysicsModel
 
 
-def generalized_forces(model: Model, kin: Kin, load):
+def generalized_forces(model: PhysicsModel, kin: Kin, load):
     """tau (nv,) of a Load: joint forces plus J^T of each body's spatial force at the origin."""
     n_origin = load.torque + jnp.cross(kin.com, load.force)
     f = jnp.concatenate([n_origin, load.force], -1)
     return load.joint + jnp.sum(kin.jac * f[..., None], axis=(0, 1))
 
 
-def mass_matrix(model: Model, kin: Kin):
+def mass_matrix(model: PhysicsModel, kin: Kin):
     """Joint-space mass matrix M = sum_b J_b^T I_b J_b (nv, nv), vectorised over bodies."""
     IJ = mm(kin.inertia, kin.jac)  # (B, 6, nv)
     return jnp.sum(kin.jac[..., :, None] * IJ[..., None, :], axis=(0, 1))
 
 
-def bias_forces(model: Model, kin: Kin):
+def bias_forces(model: PhysicsModel, kin: Kin):
     """Coriolis and centrifugal generalized forces C(q, v) v: J^T of each body's inertial force
     at zero joint acceleration, I a0 + v x* I v (Newton-Euler in Jacobian form)."""
     I, vel = kin.inertia, kin.vel
@@ -35,12 +35,12 @@ def bias_forces(model: Model, kin: Kin):
     return jnp.sum(kin.jac * f[..., None], axis=(0, 1))
 
 
-def inverse_dynamics(model: Model, kin: Kin, qdd):
+def inverse_dynamics(model: PhysicsModel, kin: Kin, qdd):
     """Generalized forces tau = M qdd + bias (no external forces)."""
     return mv(mass_matrix(model, kin), qdd) + bias_forces(model, kin)
 
 
-def joint_space_accel(model: Model, kin: Kin, tau):
+def joint_space_accel(model: PhysicsModel, kin: Kin, tau):
     """qdd = M^-1 (tau - bias) by one Cholesky solve: vectorised over bodies, so it compiles
     and runs faster than the articulated-body recursion for the small trees of scenes."""
     M = mass_matrix(model, kin)
@@ -62,7 +62,7 @@ def small_inv(D):
     return jnp.linalg.inv(D)
 
 
-def forward_dynamics(model: Model, kin: Kin, tau):
+def forward_dynamics(model: PhysicsModel, kin: Kin, tau):
     """Joint accelerations qdd = M^-1 (tau - bias) by the articulated-body algorithm, O(n)."""
     B = model.nbody
     IA = [kin.inertia[i] for i in range(B)]

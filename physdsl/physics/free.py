@@ -11,17 +11,17 @@ from __future__ import annotations
 import jax.numpy as jnp
 
 from .kinematics import Kin
-from .model import Model
 from .rows import place, take
 from .spatial import mm, mtv, mv, normalize, quat_to_mat, skew
+from .structure import PhysicsModel
 
 
-def _place(model: Model, static, moving):
+def _place(model: PhysicsModel, static, moving):
     """Body-indexed array: ``moving`` rows for the free bodies, ``static`` rows elsewhere."""
     return place(static, model.free_bodies, moving)
 
 
-def free_kinematics(model: Model, prm: dict, q, v, with_jac: bool = False) -> Kin:
+def free_kinematics(model: PhysicsModel, prm: dict, q, v, with_jac: bool = False) -> Kin:
     """Poses and velocities of every body (static ones at their reference pose)."""
     nF, B = len(model.free_bodies), model.nbody
     fb = model.free_bodies
@@ -49,7 +49,7 @@ def free_kinematics(model: Model, prm: dict, q, v, with_jac: bool = False) -> Ki
                ang=_place(model, zero, w), vcom=_place(model, zero, vcom), q=q, v=v, jac=jac)
 
 
-def free_accel(model: Model, prm: dict, kin: Kin, force, torque, tau):
+def free_accel(model: PhysicsModel, prm: dict, kin: Kin, force, torque, tau):
     """dv/dt of every free body from world forces at the COMs, world torques (B, 3) and
     generalized forces tau (nv,) (the free-joint components: origin force, body-frame torque
     about the origin)."""
@@ -67,7 +67,7 @@ def free_accel(model: Model, prm: dict, kin: Kin, force, torque, tau):
     return jnp.concatenate([a, dwl], -1).reshape(-1)
 
 
-def free_mass_matrix(model: Model, prm: dict, kin: Kin):
+def free_mass_matrix(model: PhysicsModel, prm: dict, kin: Kin):
     """Block-diagonal M (nv, nv): KE = m/2 |v_x + A w_l|^2 + w_l.I w_l/2, A = -R skew(c)."""
     nF = len(model.free_bodies)
     fb = model.free_bodies
@@ -81,7 +81,7 @@ def free_mass_matrix(model: Model, prm: dict, kin: Kin):
     return jnp.einsum("fij,fg->figj", blocks, jnp.eye(nF, dtype=R.dtype)).reshape(6 * nF, 6 * nF)
 
 
-def free_inverse_inertia(model: Model, inertia):
+def free_inverse_inertia(model: PhysicsModel, inertia):
     """Inverse body-frame inertias (nF, 3, 3) of the free bodies (computed once per rollout).
 
     By cofactors (rows a, b, c: inverse = [b x c, c x a, a x b]^T / det): a few elementwise

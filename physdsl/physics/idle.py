@@ -20,13 +20,14 @@ import jax.numpy as jnp
 from . import central
 from .contact import contact_margin
 from .integrate import either
-from .model import Model, build_model
+from .model import build_model
+from .structure import PhysicsModel
 
 PRIMITIVES = ("sphere", "box", "capsule", "cylinder", "plane")
 
 
-def free_scene(scene, model: Model):
-    """``scene`` without its contact pairs and its Model, where that flies on the split path;
+def free_scene(scene, model: PhysicsModel):
+    """``scene`` without its contact pairs and its PhysicsModel, where that flies on the split path;
     else None."""
     if not model.ncon or any(k not in PRIMITIVES for p in model.pairs for k in (p.kind_a, p.kind_b)):
         return None
@@ -46,7 +47,7 @@ def _radius(kind: str, size):
     return jnp.hypot(size[0], size[1])  # cylinder
 
 
-def clear(model: Model, prm: dict, pos, vel):
+def clear(model: PhysicsModel, prm: dict, pos, vel):
     """True if no contact pair comes within reach along the flight ``pos``/``vel`` (T, B, 3)."""
     span = model.dt * model.substeps  # between recorded states
     speed = jnp.linalg.norm(vel, axis=-1)  # (T, B)
@@ -67,7 +68,7 @@ def clear(model: Model, prm: dict, pos, vel):
     return ok
 
 
-def free_unless_near(model: Model, prm: dict, free, contact, values, forward_only: bool):
+def free_unless_near(model: PhysicsModel, prm: dict, free, contact, values, forward_only: bool):
     """The flight ``free`` (a Rollout) where ``clear``, else ``contact(values)`` (a Rollout, cut
     to the fields that ``free`` has), by ``integrate.either``."""
     C = model.ncon

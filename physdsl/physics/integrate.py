@@ -25,7 +25,7 @@ from .dynamics import forward_dynamics, generalized_forces, joint_space_accel, m
 from .effects import EFFECTS, Ctx, zero_load
 from .free import free_accel, free_kinematics, free_mass_matrix
 from .kinematics import forward_kinematics, integrate_q
-from .model import Model
+from .structure import PhysicsModel
 
 
 # trees with at most this many dofs: one Cholesky solve; larger: the articulated-body algorithm
@@ -39,7 +39,7 @@ class State(NamedTuple):
     contact_normal: jnp.ndarray  # (C, 3)
 
 
-def total_gravity(model: Model, prm: dict):
+def total_gravity(model: PhysicsModel, prm: dict):
     """Sum of the gravity effects' accelerations (zero without one): buoyancy's g."""
     g = jnp.zeros(3)
     for s in model.sites:
@@ -48,7 +48,7 @@ def total_gravity(model: Model, prm: dict):
     return g
 
 
-def applied_load(model: Model, prm: dict, kin, state: State, t, t_step):
+def applied_load(model: PhysicsModel, prm: dict, kin, state: State, t, t_step):
     """Sum of the Loads of every force-stage effect."""
     ctx = Ctx(kin, prm, t, t_step, total_gravity(model, prm), state.contact_force,
               state.contact_normal)
@@ -60,14 +60,14 @@ def applied_load(model: Model, prm: dict, kin, state: State, t, t_step):
     return load
 
 
-def kinematics(model: Model, prm: dict, q, v, with_jac: bool = False):
+def kinematics(model: PhysicsModel, prm: dict, q, v, with_jac: bool = False):
     """Kinematics by the free-body fast path when it applies, else over the tree."""
     if model.free_bodies is not None:
         return free_kinematics(model, prm, q, v, with_jac)
     return forward_kinematics(model, prm, q, v)
 
 
-def accel(model: Model, prm: dict, kin, load, tau=None):
+def accel(model: PhysicsModel, prm: dict, kin, load, tau=None):
     """Joint accelerations under ``load`` plus extra generalized forces ``tau``."""
     if model.free_bodies is not None:
         return free_accel(model, prm, kin, load.force, load.torque,
@@ -79,7 +79,7 @@ def accel(model: Model, prm: dict, kin, load, tau=None):
     return forward_dynamics(model, kin, gen)
 
 
-def joint_mass_matrix(model: Model, prm: dict, kin):
+def joint_mass_matrix(model: PhysicsModel, prm: dict, kin):
     """M (nv, nv) at the state of ``kin``."""
     if model.free_bodies is not None:
         return free_mass_matrix(model, prm, kin)
@@ -172,7 +172,7 @@ def _compliant_step(model, prm, state, t, h, forward_only=False):
     return either(jnp.any(con.active), contact, apart, operand, forward_only)
 
 
-def step(model: Model, prm: dict, state: State, t, h, forward_only: bool = False):
+def step(model: PhysicsModel, prm: dict, state: State, t, h, forward_only: bool = False):
     """Advance ``state`` from time t by h (one substep); ``forward_only``: the rollout is
     differentiated in forward mode alone (contact steps skipped under vmap, ``either``)."""
     if model.ncon:
@@ -183,7 +183,7 @@ def step(model: Model, prm: dict, state: State, t, h, forward_only: bool = False
     return state._replace(q=integrate_q(model, state.q, v_next, h), v=v_next)
 
 
-def _rk4(model: Model, prm: dict, state: State, t, h, a1=None):
+def _rk4(model: PhysicsModel, prm: dict, state: State, t, h, a1=None):
     """Classic RK4 on (q, v), positions advanced on the manifold by stage velocities (as MuJoCo);
     contact forces take no part (``step`` calls it only with no contact near).
 

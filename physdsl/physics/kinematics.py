@@ -11,9 +11,9 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .model import Model
-from .spatial import (cross_motion, mm, mv, normalize, quat_axis_angle, quat_conj, quat_mul,
-                      quat_to_mat, skew, spatial_inertia)
+from .structure import PhysicsModel
+from .spatial import (cross_motion, mm, mv, normalize, quat_axis_angle, quat_conj, quat_integrate,
+                      quat_mul, quat_to_mat, skew, spatial_inertia)
 
 
 class Kin(NamedTuple):
@@ -40,7 +40,7 @@ class Kin(NamedTuple):
 BARRIER_DEPTH = 3
 
 
-def _barrier(model: Model, x):
+def _barrier(model: PhysicsModel, x):
     """An optimization barrier in deep trees only: it stops XLA from fusing (and recomputing)
     whole ancestor chains per body, but in shallow trees it only splits kernels."""
     if max(_depths(model)) < BARRIER_DEPTH:
@@ -48,7 +48,7 @@ def _barrier(model: Model, x):
     return jax.lax.optimization_barrier(x)
 
 
-def _depths(model: Model):
+def _depths(model: PhysicsModel):
     d = [0] * model.nbody
     for i in model.order:
         p = model.joints[i].parent
@@ -56,19 +56,12 @@ def _depths(model: Model):
     return d or [0]
 
 
-def forward_kinematics(model: Model, prm: dict, q, v) -> Kin:
+def forward_kinematics(model: PhysicsModel, prm: dict, q, v) -> Kin:
     """Poses, velocities, Jacobians and spatial inertias of every body at state (q, v)."""
     B, nv = model.nbody, model.nv
     dtype = q.dtype if q.size else prm["ref_pos"].dtype
     ident = (jnp.array([1.0, 0.0, 0.0, 0.0], dtype=dtype), jnp.zeros(3, dtype=dtype))
-    D: list = [None] * B
-    pos: list = [None] * B
-    quat: list = [None] * B
-    vel: list = [None] * B
-    jac: list = [None] * B
-    cacc: list = [None] * B
-    acc0: list = [None] * B
-    S: list = [None] * B
+    D, pos, quat, vel, jac, cacc, acc0, S = ([None] * B for _ in range(8))  # per body
     zero6 = jnp.zeros(6, dtype=dtype)
     for i in model.order:
         tj = model.joints[i]
@@ -144,10 +137,8 @@ def point_velocity(kin: Kin, body: int, point):
     return kin.vcom[body] + jnp.cross(kin.ang[body], point - kin.com[body])
 
 
-def integrate_q(model: Model, q, v, h):
+def integrate_q(model: PhysicsModel, q, v, h):
     """q advanced by velocity v over time h (quaternions on the manifold, renormalised)."""
-    from .spatial import quat_integrate
-
     parts = []
     for i in model.order:
         tj = model.joints[i]

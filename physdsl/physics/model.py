@@ -1,102 +1,17 @@
-"""The static Model of a Scene: kinematic tree, joint types, q/v index ranges, shapes, effect sites.
-
-Nothing here depends on unknown values; numbers live in the params pytree (``params.py``).
-Every body is a tree node with one tree joint to its parent (-1 = world): ``free`` (7 q, 6 v),
-``ball`` (4, 3), ``hinge``/``slider`` (1, 1) or ``fixed`` (0, 0, rigidly welded to the parent).
+"""``build_model(scene)``: the static PhysicsModel of a Scene (``structure.py``), checked:
+a tree of joints rooted at world, shapes and masses present, every effect registered
+(``effects.EFFECTS``) and acting on a target it may, a registered contact model.
 """
 from __future__ import annotations
-
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..errors import ModelError
 from ..scene import Scene
+from . import contact as contact_mod
 from .contact_models import CONTACT_MODELS
-
-DOFS = {"free": (7, 6), "ball": (4, 3), "hinge": (1, 1), "slider": (1, 1), "fixed": (0, 0)}
-SHAPES = ("sphere", "box", "cylinder", "capsule", "plane", "mesh")
-
-
-@dataclass(frozen=True)
-class TreeJoint:
-    """The joint between body ``body`` and its parent, with its slices into q and v."""
-
-    kind: str
-    body: int
-    parent: int  # -1: world
-    qadr: int
-    nq: int
-    vadr: int
-    nv: int
-    scene_joint: int | None  # index into scene.joints, None for implicit free/weld joints
-    dh: bool = False
-
-
-@dataclass(frozen=True)
-class Site:
-    """Where one effect use acts: body indices, scene joint index, tree dofs, static tables."""
-
-    effect: str
-    key: str
-    index: int  # position in scene.effects
-    bodies: tuple[int, ...] = ()
-    joint: int | None = None
-    dofs: tuple[int, ...] = ()
-    tables: dict = field(default_factory=dict, hash=False, compare=False)
-    contacts: tuple[int, ...] = ()  # candidate contact rows of a pair (rolling resistance)
-
-
-@dataclass(frozen=True)
-class ContactPair:
-    """A candidate contact pair: bodies a, b, their shape kinds, and its rows in contact arrays."""
-
-    a: int
-    b: int
-    kind_a: str
-    kind_b: str
-    rows: tuple[int, ...]
-    friction: int | None  # index of the contact_friction effect use, if any
-    restitution: int | None
-
-
-@dataclass(frozen=True, eq=False)
-class Model:
-    """Static structure; hashable by identity so it can be a jit static argument."""
-
-    body_names: tuple[str, ...]
-    joint_names: tuple[str, ...]
-    shape_kinds: tuple[str | None, ...]
-    joints: tuple[TreeJoint, ...]  # one per body, indexed by body
-    order: tuple[int, ...]  # topological order (parents first)
-    children: tuple[tuple[int, ...], ...]
-    nq: int
-    nv: int
-    sites: tuple[Site, ...]
-    pairs: tuple[ContactPair, ...]
-    ncon: int
-    integrator: str
-    contact_model: str
-    dt: float
-    substeps: int
-    nsteps: int  # recorded steps after t = 0
-    # free bodies in q order when every moving body is free and unjointed (the Newton-Euler
-    # fast path of ``free.py``; every other body is static), else None (tree algorithms)
-    free_bodies: tuple[int, ...] | None = None
-
-    @property
-    def nbody(self) -> int:
-        return len(self.body_names)
-
-    def ancestors_dofs(self, body: int) -> tuple[int, ...]:
-        """v indices of all joints on the path from the world to ``body``."""
-        out: list[int] = []
-        b = body
-        while b >= 0:
-            j = self.joints[b]
-            out.extend(range(j.vadr, j.vadr + j.nv))
-            b = j.parent
-        return tuple(sorted(out))
+from .effects import EFFECTS
+from .structure import DOFS, SHAPES, ContactPair, PhysicsModel, Site, TreeJoint
 
 
 def _tree(scene: Scene):
@@ -163,10 +78,8 @@ def _tree(scene: Scene):
     return names, index, parent, kind, sj, order
 
 
-def build_model(scene: Scene) -> Model:
-    """Static Model of ``scene``; raises ModelError for unsupported structure."""
-    from .effects import EFFECTS
-
+def build_model(scene: Scene) -> PhysicsModel:
+    """Static PhysicsModel of ``scene``; raises ModelError for unsupported structure."""
     names, index, parent, kind, sj, order = _tree(scene)
     joints: list[TreeJoint | None] = [None] * len(names)
     qa = va = 0
@@ -185,33 +98,57 @@ def build_model(scene: Scene) -> Model:
         if kind[i] != "fixed" and b.shape is None and (b.inertia is None or b.mass is None):
             raise ModelError(f"body '{b.name}' has no shape, so it needs mass and inertia", span=b.span)
 
-    # contact candidates (rows assigned after detection sizes are known)
+    pairs, ncon = _contact_pairs(scene, index, shape_kinds)
+    sites = _sites(scene, names, index, joints, pairs)
+
+    if scene.world.integrator not in ("semi_implicit_euler", "rk4"):
+        raise ModelError(f"unknown integrator '{scene.world.integrator}'",
+                         hint="use semi_implicit_euler or rk4")
+    if scene.world.contact_model not in CONTACT_MODELS:
+        raise ModelError(f"unknown contact model '{scene.world.contact_model}'",
+                         hint=f"use {' or '.join(sorted(CONTACT_MODELS))}")
+    free_bodies = _free_bodies(joints)
+    dt = float(scene.world.timestep)
+    if not dt > 0:
+        raise ModelError("timestep must be positive")
+    nsteps = int(np.ceil(scene.duration / dt - 1e-9))
+    return PhysicsModel(
+        body_names=tuple(names), joint_names=tuple(j.name for j in scene.joints),
+        shape_kinds=shape_kinds, joints=tuple(joints), order=tuple(order), children=children,
+        nq=qa, nv=va, sites=tuple(sites), pairs=tuple(pairs), ncon=ncon,
+        integrator=scene.world.integrator, contact_model=scene.world.contact_model,
+        dt=dt, substeps=max(int(scene.world.substeps), 1), nsteps=max(nsteps, 1),
+        free_bodies=free_bodies,
+    )
+
+
+def _contact_pairs(scene: Scene, index: dict, shape_kinds) -> tuple[list[ContactPair], int]:
+    """The contact candidate pairs and their number of rows (assigned by the detector's
+    fixed count per pair of shape kinds)."""
     pairs: list[ContactPair] = []
     ncon = 0
     eff_index = {}
     for k, use in enumerate(scene.effects):
         if len(use.target) == 2:
             eff_index[(use.effect, frozenset(use.target))] = k
-    if scene.contact_pairs:
-        try:
-            from . import contact as contact_mod
-        except ImportError as exc:
-            raise ModelError("this scene has contacts but the contact module is not available",
-                             hint="install the full physdsl package") from exc
-        for a, b in scene.contact_pairs:
-            for n in (a, b):
-                if n not in index:
-                    raise ModelError(f"contact pair names unknown body '{n}'")
-            ia, ib = index[a], index[b]
-            ka, kb = shape_kinds[ia], shape_kinds[ib]
-            if ka is None or kb is None:
-                raise ModelError(f"contact pair ({a}, {b}) needs shapes on both bodies")
-            k = _contact_count(contact_mod, ka, kb)
-            pairs.append(ContactPair(ia, ib, ka, kb, tuple(range(ncon, ncon + k)),
-                                     eff_index.get(("contact_friction", frozenset((a, b)))),
-                                     eff_index.get(("restitution", frozenset((a, b))))))
-            ncon += k
+    for a, b in scene.contact_pairs:
+        for n in (a, b):
+            if n not in index:
+                raise ModelError(f"contact pair names unknown body '{n}'")
+        ia, ib = index[a], index[b]
+        ka, kb = shape_kinds[ia], shape_kinds[ib]
+        if ka is None or kb is None:
+            raise ModelError(f"contact pair ({a}, {b}) needs shapes on both bodies")
+        k = _contact_count(contact_mod, ka, kb)
+        pairs.append(ContactPair(ia, ib, ka, kb, tuple(range(ncon, ncon + k)),
+                                 eff_index.get(("contact_friction", frozenset((a, b)))),
+                                 eff_index.get(("restitution", frozenset((a, b))))))
+        ncon += k
+    return pairs, ncon
 
+
+def _sites(scene: Scene, names, index: dict, joints, pairs) -> list[Site]:
+    """Where each effect use acts, checked by its registered effect (``EFFECTS``)."""
     sites = []
     jindex = {j.name: i for i, j in enumerate(scene.joints)}
     for k, use in enumerate(scene.effects):
@@ -240,26 +177,7 @@ def build_model(scene: Scene) -> Model:
                         rows = p.rows
         EFFECTS[use.effect].check(scene, use, bodies, joint)
         sites.append(Site(use.effect, use.key, k, bodies, joint, dofs, dict(use.tables), rows))
-
-    if scene.world.integrator not in ("semi_implicit_euler", "rk4"):
-        raise ModelError(f"unknown integrator '{scene.world.integrator}'",
-                         hint="use semi_implicit_euler or rk4")
-    if scene.world.contact_model not in CONTACT_MODELS:
-        raise ModelError(f"unknown contact model '{scene.world.contact_model}'",
-                         hint=f"use {' or '.join(sorted(CONTACT_MODELS))}")
-    free_bodies = _free_bodies(joints)
-    dt = float(scene.world.timestep)
-    if not dt > 0:
-        raise ModelError("timestep must be positive")
-    nsteps = int(np.ceil(scene.duration / dt - 1e-9))
-    return Model(
-        body_names=tuple(names), joint_names=tuple(j.name for j in scene.joints),
-        shape_kinds=shape_kinds, joints=tuple(joints), order=tuple(order), children=children,
-        nq=qa, nv=va, sites=tuple(sites), pairs=tuple(pairs), ncon=ncon,
-        integrator=scene.world.integrator, contact_model=scene.world.contact_model,
-        dt=dt, substeps=max(int(scene.world.substeps), 1), nsteps=max(nsteps, 1),
-        free_bodies=free_bodies,
-    )
+    return sites
 
 
 def _free_bodies(joints) -> tuple[int, ...] | None:

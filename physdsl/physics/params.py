@@ -1,4 +1,4 @@
-"""Numeric parameters of a Model, evaluated from the unknowns' values inside the traced function.
+"""Numeric parameters of a PhysicsModel, evaluated from the unknowns' values inside the traced function.
 
 Every number a prior can sit on flows through here: masses, sizes, inertia, reference poses,
 joint anchors/axes and DH parameters, initial state, effect parameters. Pure in ``values``.
@@ -10,8 +10,9 @@ import jax.numpy as jnp
 from ..expr import Const, evaluate
 from ..scene import Scene
 from . import inertia as inr
-from .model import Model
+from .free import free_inverse_inertia
 from .spatial import normalize, quat_axis_angle, quat_conj, quat_mul, quat_to_mat, rotate
+from .structure import PhysicsModel
 
 _ID_QUAT = Const((1.0, 0.0, 0.0, 0.0))
 _ZERO3 = Const((0.0, 0.0, 0.0))
@@ -69,7 +70,7 @@ def _dh_transform(dh, values, q_offset_theta=0.0, q_offset_d=0.0):
     return quat, trans
 
 
-def evaluate_params(scene: Scene, model: Model, values) -> dict:
+def evaluate_params(scene: Scene, model: PhysicsModel, values) -> dict:
     """The params pytree: per-body arrays (B, ...), joint anchors/axes, q0/v0, effect params."""
     B = model.nbody
     masses, inertias, coms, vols, csizes = [], [], [], [], []
@@ -139,8 +140,6 @@ def evaluate_params(scene: Scene, model: Model, values) -> dict:
         "q0": cat(q0), "v0": cat(v0), "effects": effects,
     }
     if model.free_bodies is not None:
-        from .free import free_inverse_inertia
-
         out["free_inv_inertia"] = free_inverse_inertia(model, inertia)
     return out
 

@@ -1,6 +1,6 @@
 """Simulator: a Scene compiled to a pure, jitted ``simulate(values) -> Rollout``.
 
-The static Model is built once; each call evaluates the params from ``values`` inside the
+The static PhysicsModel is built once; each call evaluates the params from ``values`` inside the
 traced function, scans ``step`` over the recorded times and reads body and joint observables
 from the states. Free bodies under central effects alone (``central.decoupled``) scan their
 translation and rotation separately, and a caller that names the fields it reads
@@ -21,9 +21,10 @@ from . import central, idle
 from .forward import FORWARD_MODE_MAX, forward_mode
 from .integrate import State, kinematics, step
 from .markers import marker_tracks
-from .model import Model, build_model
+from .model import build_model
 from .params import evaluate_params
 from .rows import place
+from .structure import PhysicsModel
 
 
 class Rollout(NamedTuple):
@@ -41,7 +42,7 @@ class Rollout(NamedTuple):
     marker_vel: jnp.ndarray | None = None  # (T, M, 3) markers' world velocities
 
 
-def observe(model: Model, prm: dict, q, v):
+def observe(model: PhysicsModel, prm: dict, q, v):
     """Body poses/velocities and scene-joint coordinates at one state."""
     kin = kinematics(model, prm, q, v)
     w = kin.ang
@@ -62,7 +63,7 @@ def observe(model: Model, prm: dict, q, v):
 class Simulator:
     """Compiled simulation of one Scene; ``simulate`` is pure in ``values`` and jit/vmap/grad-able."""
 
-    def __init__(self, scene: Scene, model: Model):
+    def __init__(self, scene: Scene, model: PhysicsModel):
         self.scene = scene
         self.model = model
         self.body_names = model.body_names
