@@ -1,8 +1,9 @@
 """A goal as a cost on a rollout: pure JAX functions of (rollout, values), differentiable through
 the physics (contacts included), and the goal's errors in the user's units.
 
-Reach and Hold terms are squared errors divided by their tolerance (dimensionless, so terms
-add); Effort is ``weight * sum_k u_k^2 dt_k`` over the chosen control sequences (zero-order hold).
+The cost is a sum of squares (``goal_residuals``): errors divided by their tolerance
+(dimensionless, so terms add) and ``weight * sum_k u_k^2 dt_k`` for the effort over the chosen
+control sequences (zero-order hold), so Gauss-Newton steps know its curvature.
 """
 from __future__ import annotations
 
@@ -78,10 +79,11 @@ def position_at(rollout, times, track: Track, t: float):
     return jnp.stack([jnp.interp(t, times, column[:, k]) for k in range(3)])
 
 
-def effort(scene: Scene, values, chosen: tuple[str, ...]):
-    """Sum over chosen control sequences of ∫ (gain * values(t))² dt, zero-order hold to the end."""
+def effort_residuals(scene: Scene, values, chosen: tuple[str, ...]):
+    """sqrt(dt_k) * gain * u_k over the chosen control sequences (zero-order hold to the end):
+    their squared sum is ∫ u² dt."""
     uses = control_effects(scene)
-    total = jnp.zeros(())
+    parts = [jnp.zeros(0)]
     for name in chosen:
         use = uses.get(name)
         if use is None:
@@ -89,9 +91,9 @@ def effort(scene: Scene, values, chosen: tuple[str, ...]):
         times = np.asarray(use.tables["times"], dtype=float)
         held = np.diff(np.append(times, max(scene.duration, float(times[-1]))))
         gain = evaluate(use.params["gain"], values) if "gain" in use.params else 1.0
-        u = gain * jnp.asarray(values[name])
-        total = total + jnp.sum(jnp.reshape(u ** 2, (len(times), -1)).sum(axis=1) * held)
-    return total
+        u = jnp.reshape(gain * jnp.asarray(values[name]), (len(times), -1))
+        parts.append(jnp.sqrt(held)[:, None] * u)
+    return jnp.concatenate([jnp.ravel(p) for p in parts])
 
 
 def term_errors(scene: Scene, simulator, goal: Goal, rollout, values) -> list:
@@ -108,29 +110,30 @@ def term_errors(scene: Scene, simulator, goal: Goal, rollout, values) -> list:
             window = (simulator.times >= term.start - 1e-12) & (simulator.times <= term.end + 1e-12)
             out.append(jnp.max(jnp.abs(rollout.joint_pos[np.flatnonzero(window), j] - term.value)))
         else:
-            out.append(effort(scene, values, tuple(control_effects(scene))))
+            out.append(jnp.sum(effort_residuals(scene, values, tuple(control_effects(scene))) ** 2))
     return out
 
 
-def goal_cost(scene: Scene, simulator, goal: Goal, rollout, values, chosen: tuple[str, ...]):
-    """The scalar cost: Σ (error / within)² over Reach terms, mean of the same over each Hold
-    window, plus weight × effort."""
+def goal_residuals(scene: Scene, simulator, goal: Goal, rollout, values, chosen: tuple[str, ...]):
+    """The goal as a residual vector whose squared sum is the cost: (error / within) per axis of
+    each Reach term, the same over each Hold window divided by the square root of its length
+    (its mean), and sqrt(weight * dt_k) * u_k for Effort."""
     times = jnp.asarray(simulator.times)
-    cost = jnp.zeros(())
+    parts = [jnp.zeros(0)]
     for term in goal.terms:
         if isinstance(term, Reach):
             track = track_of(scene, simulator.body_names, simulator.marker_names, term)
-            miss = position_at(rollout, times, track, term.at) - jnp.asarray(term.point)
-            cost = cost + jnp.sum(miss ** 2) / term.within ** 2
+            parts.append((position_at(rollout, times, track, term.at) - jnp.asarray(term.point))
+                         / term.within)
         elif isinstance(term, Hold):
             j = list(simulator.joint_names).index(term.joint)
             window = np.flatnonzero((simulator.times >= term.start - 1e-12)
                                     & (simulator.times <= term.end + 1e-12))
-            miss = rollout.joint_pos[window, j] - term.value
-            cost = cost + jnp.mean(miss ** 2) / term.within ** 2
+            parts.append((rollout.joint_pos[window, j] - term.value)
+                         / (term.within * np.sqrt(len(window))))
         elif isinstance(term, Effort):
-            cost = cost + term.weight * effort(scene, values, chosen)
-    return cost
+            parts.append(np.sqrt(term.weight) * effort_residuals(scene, values, chosen))
+    return jnp.concatenate([jnp.ravel(p) for p in parts])
 
 
 def met(goal: Goal, errors) -> bool:

@@ -21,7 +21,7 @@ from ..goal import Goal
 from ..infer.multistart import prior_centre
 from ..infer.posterior_data import group, posterior_draws
 from ..infer.problem import model_problem, unconstrained_layout, unraveler
-from .cost import check_goal, control_effects, goal_cost, term_errors
+from .cost import check_goal, control_effects, goal_residuals, term_errors
 
 
 @dataclass(frozen=True)
@@ -117,16 +117,24 @@ def full_vector(problem: ControlProblem, z, row):
     return jnp.asarray(row).at[problem.index].set(z)
 
 
-def cost_fn(problem: ControlProblem):
-    """z -> mean goal cost over the problem's rows (pure, jit- and grad-able)."""
+def residual_fn(problem: ControlProblem):
+    """z -> the goal's residuals at every row, scaled so their squared sum is the mean cost
+    over the rows (pure, jit- and grad-able)."""
     model, goal, rows = problem.model, problem.goal, jnp.asarray(problem.rows)
+    scale = 1.0 / np.sqrt(rows.shape[0])
 
     def one(z, row):
         values = constrain(model, full_vector(problem, z, row))
         rollout = model.simulator.simulate(values)
-        return goal_cost(model.scene, model.simulator, goal, rollout, values, problem.chosen)
+        return goal_residuals(model.scene, model.simulator, goal, rollout, values, problem.chosen)
 
-    return lambda z: jnp.mean(jax.vmap(one, in_axes=(None, 0))(z, rows))
+    return lambda z: scale * jnp.ravel(jax.vmap(one, in_axes=(None, 0))(z, rows))
+
+
+def cost_fn(problem: ControlProblem):
+    """z -> the mean goal cost over the problem's rows (the residuals' squared sum)."""
+    residuals = residual_fn(problem)
+    return lambda z: jnp.sum(residuals(z) ** 2)
 
 
 def outcome(problem: ControlProblem, z) -> tuple[dict, object, list]:
