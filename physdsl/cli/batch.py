@@ -100,8 +100,13 @@ def _run(command: str, scenes: list[str], out: Path, options: dict, executor: st
     """Run the batch; print its counts; exit 1 if any job failed."""
     from ..batch import run_batch
 
-    summary = run_batch(command, scenes, out, options, executor, address=address,
-                        workers=workers, retries=retries, force=force, progress=not quiet)
+    try:
+        summary = run_batch(command, scenes, out, options, executor, address=address,
+                            workers=workers, retries=retries, force=force, progress=not quiet)
+    except KeyboardInterrupt as ex:  # click would say 'Aborted!' and exit 1
+        typer.echo(f"interrupted: the finished jobs are kept in {out} (batch.json); run the "
+                   "same command again to run the others", err=True)
+        raise typer.Exit(128 + getattr(ex, "signum", 2))
     counts = summary["counts"]
     rate = summary["fits_per_hour"]
     typer.echo(f"{counts['done']} done, {counts['failed']} failed, {counts['skipped']} skipped "
