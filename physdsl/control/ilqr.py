@@ -1,0 +1,95 @@
+"""iLQR (iterative linear-quadratic regulator) over a horizon, pure JAX: the plan ``W`` (H, m)
+that lowers ``sum_k stage(x_k, w_k) + final(x_H)`` along ``x_{k+1} = f(x_k, w_k)``.
+
+Each iteration linearises ``f`` along the current trajectory (``jacfwd``, one batched
+call), takes second-order expansions of the costs, runs the Riccati backward pass, and
+rolls the feedback policy forward at several step lengths at once (``vmap``), keeping the
+cheapest (length 0 is the unchanged plan, so the cost never rises). The whole solve is one
+traced function of (x0, W, params): a receding-horizon controller compiles it once and
+warm-starts each step from the previous plan shifted by one.
+"""
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+STEP_LENGTHS = (1.0, 0.5, 0.25, 0.1, 0.03, 0.0)
+REGULARISATION = 1e-6  # added to the control Hessian (after shifting it positive definite)
+
+
+def rollout(f, x0, W):
+    """States (H + 1, n) from ``x0`` under the plan ``W`` (H, m)."""
+    def body(x, w):
+        x1 = f(x, w)
+        return x1, x1
+
+    _, xs = jax.lax.scan(body, x0, W)
+    return jnp.concatenate([x0[None], xs])
+
+
+def total_cost(stage, final, X, W):
+    return jnp.sum(jax.vmap(stage)(X[:-1], W)) + final(X[-1])
+
+
+def _positive(Q):
+    """``Q`` shifted by its most negative eigenvalue (if any) plus the regularisation."""
+    low = jnp.min(jnp.linalg.eigvalsh(Q))
+    return Q + (jnp.maximum(0.0, -low) + REGULARISATION) * jnp.eye(Q.shape[0], dtype=Q.dtype)
+
+
+def _backward(f, stage, final, X, W):
+    """Feedforward steps k (H, m) and gains K (H, m, n) of the Riccati pass."""
+    n = X.shape[1]
+    AB = jax.vmap(lambda x, w: jax.jacfwd(lambda xw: f(xw[:n], xw[n:]))(jnp.concatenate([x, w]))
+                  )(X[:-1], W)  # one forward-mode pass for both Jacobians
+    A, B = AB[:, :, :n], AB[:, :, n:]
+    lx = jax.vmap(jax.grad(stage, 0))(X[:-1], W)
+    lu = jax.vmap(jax.grad(stage, 1))(X[:-1], W)
+    lxx = jax.vmap(jax.hessian(stage, 0))(X[:-1], W)
+    luu = jax.vmap(jax.hessian(stage, 1))(X[:-1], W)
+    lux = jax.vmap(jax.jacfwd(jax.grad(stage, 1), 0))(X[:-1], W)
+
+    def back(carry, e):
+        Vx, Vxx = carry
+        A, B, lx, lu, lxx, luu, lux = e
+        Qx, Qu = lx + A.T @ Vx, lu + B.T @ Vx
+        Qxx, Qux = lxx + A.T @ Vxx @ A, lux + B.T @ Vxx @ A
+        Quu = _positive(luu + B.T @ Vxx @ B)
+        k = -jnp.linalg.solve(Quu, Qu)
+        K = -jnp.linalg.solve(Quu, Qux)
+        Vx = Qx + K.T @ Quu @ k + K.T @ Qu + Qux.T @ k
+        Vxx = Qxx + K.T @ Quu @ K + K.T @ Qux + Qux.T @ K
+        return (Vx, 0.5 * (Vxx + Vxx.T)), (k, K)
+
+    start = (jax.grad(final)(X[-1]), jax.hessian(final)(X[-1]))
+    _, (ks, Ks) = jax.lax.scan(back, start, (A, B, lx, lu, lxx, luu, lux), reverse=True)
+    return ks, Ks
+
+
+def _forward(f, X, W, ks, Ks, alpha):
+    """The trajectory and plan of the feedback policy at step length ``alpha``."""
+    def body(x, e):
+        xk, wk, k, K = e
+        w = wk + alpha * k + K @ (x - xk)
+        return f(x, w), (x, w)
+
+    last, (xs, ws) = jax.lax.scan(body, X[0], (X[:-1], W, ks, Ks))
+    return jnp.concatenate([xs, last[None]]), ws
+
+
+def solve(f, stage, final, x0, W, iterations: int):
+    """(plan (H, m), trajectory (H + 1, n), cost) after ``iterations`` iLQR iterations from
+    the plan ``W``; ``f(x, w)``, ``stage(x, w)`` and ``final(x)`` pure and differentiable."""
+    X = rollout(f, x0, W)
+    lengths = jnp.asarray(STEP_LENGTHS, dtype=X.dtype)
+
+    def iteration(carry, _):
+        W, X = carry
+        ks, Ks = _backward(f, stage, final, X, W)
+        Xs, Ws = jax.vmap(lambda a: _forward(f, X, W, ks, Ks, a))(lengths)
+        costs = jax.vmap(lambda X, W: total_cost(stage, final, X, W))(Xs, Ws)
+        best = jnp.argmin(jnp.where(jnp.isfinite(costs), costs, jnp.inf))
+        return (Ws[best], Xs[best]), None
+
+    (W, X), _ = jax.lax.scan(iteration, (W, X), None, length=iterations)
+    return W, X, total_cost(stage, final, X, W)

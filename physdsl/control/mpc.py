@@ -1,0 +1,176 @@
+"""Model-predictive control that refits itself (``physdsl mpc``): iLQR over the scene's horizon
+from the plant's observed state at every control period, the first planned force applied, the
+plan shifted and kept as the next warm start; every ``refit_every`` periods the physical
+unknowns are refitted (MAP, ``refit.map_fit``) from the transitions seen so far, and the next
+plans use them. Nothing reads the plant's parameters: only its observations.
+
+The scene's goal is the cost: each ``hold`` term (``JOINT.angle from .. to .. -> VALUE within
+TOL``) is a stage cost ``((q - VALUE) / TOL)^2`` averaged over the horizon, the horizon's end
+weighing ``TERMINAL`` steps more (it stands for the future beyond the horizon), plus the
+effort ``weight * u^2 * period``. Forces are planned in the control prior's unconstrained space,
+so they stay within its bounds (``uniform(-10 N, 10 N)``).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..compile import Model
+from ..errors import ModelError, UsageError
+from ..goal import Effort, Hold
+from . import ilqr
+from .plant import Observation, Plant
+from .refit import CAPACITY, Memory, constrained_sd, map_fit
+from .transition import Transition, build_transition, control_bounds
+
+ITERATIONS = 2  # iLQR iterations per control period (warm-started)
+FIRST_ITERATIONS = 10  # before the first force: a cold plan
+TERMINAL = 10.0  # the horizon's last state weighs as this many steps
+REFIT_EVERY = 10  # control periods between refits
+EFFORT_FLOOR = 1e-6  # per N^2 s: keeps the control Hessian positive without an effort term
+
+
+@dataclass
+class MpcResult:
+    """A closed-loop run: states, forces, estimates over time and the time each step took."""
+
+    joints: tuple[str, ...]
+    targets: tuple[str, ...]
+    times: np.ndarray  # (T + 1,) s
+    states: np.ndarray  # (T + 1, 2J): coordinates then velocities
+    forces: np.ndarray  # (T, nu) N (or N m)
+    step_ms: np.ndarray  # (T,) wall time of each plan
+    estimates: list[dict] = field(default_factory=list)  # t, step, values, sd, refit_ms
+    holds: tuple[Hold, ...] = ()
+    cost: float = 0.0  # the goal's stage cost summed over the run
+
+    def hold_errors(self, settle: float = 0.0) -> list[float]:
+        """Each hold term's largest error (its unit) from ``settle`` s to the end."""
+        after = self.times >= settle - 1e-12
+        out = []
+        for term in self.holds:
+            j = self.joints.index(term.joint)
+            out.append(float(np.max(np.abs(self.states[after, j] - term.value))))
+        return out
+
+    def held(self, settle: float = 0.0) -> bool:
+        """Whether every hold term stayed within its tolerance from ``settle`` s on."""
+        return all(e <= t.within for t, e in zip(self.holds, self.hold_errors(settle)))
+
+
+def goal_costs(transition: Transition, holds, weight: float, squash):
+    """(stage(x, w), final(x)) of the goal's hold and effort terms over one horizon."""
+    columns = jnp.asarray([transition.joints.index(h.joint) for h in holds], dtype=int)
+    targets = jnp.asarray([h.value for h in holds])
+    tolerance = jnp.asarray([h.within for h in holds])
+    per_step = 1.0 / (transition.horizon + 1)
+
+    def miss(x):
+        return jnp.sum(((x[columns] - targets) / tolerance) ** 2) * per_step
+
+    def stage(x, w):
+        u = squash(w)
+        return miss(x) + max(weight, EFFORT_FLOOR) * jnp.sum(u ** 2) * transition.period
+
+    return stage, lambda x: TERMINAL * miss(x)
+
+
+def goal_terms(model: Model) -> tuple[tuple[Hold, ...], float]:
+    """The scene goal's hold terms and its effort weight (a reach term is refused)."""
+    goal = model.scene.goal
+    if goal is None:
+        raise ModelError("mpc needs a goal: the scene has no `goal { ... }` block",
+                         hint="e.g. `goal { pole_hinge.angle from 0 s to 500 ms -> 180 deg "
+                              "within 0.1 rad  effort: 1e-3 }`")
+    holds = tuple(t for t in goal.terms if isinstance(t, Hold))
+    other = [t for t in goal.terms if not isinstance(t, (Hold, Effort))]
+    if other or not holds:
+        raise ModelError("mpc keeps joints near values: its goal takes `JOINT.angle ... -> VALUE "
+                         "within TOL` and `effort:` terms", span=(other[0].span if other
+                                                                   else goal.span),
+                         hint="reach a point open-loop with `physdsl control`")
+    return holds, sum(t.weight for t in goal.terms if isinstance(t, Effort))
+
+
+class Controller:
+    """The compiled pieces of one scene's MPC: planner, refit, state reader."""
+
+    def __init__(self, model: Model, iterations: int = ITERATIONS):
+        self.transition = tr = build_transition(model)
+        self.holds, weight = goal_terms(model)
+        self.squash = control_bounds(model, tr.controls)
+        stage, final = goal_costs(tr, self.holds, weight, self.squash)
+        self.stage = jax.jit(stage)
+
+        def plan(x0, W, z, iterations):
+            prm = tr.params(z)
+            return ilqr.solve(lambda x, w: tr.step(prm, x, self.squash(w)), stage, final,
+                              x0, W, iterations)
+
+        self.plan = jax.jit(plan, static_argnums=3)
+        self.iterations = iterations
+        self.fit = map_fit(tr)
+
+    def state(self, obs: Observation) -> np.ndarray:
+        missing = [j for j in self.transition.joints
+                   if j not in obs.position or j not in obs.velocity]
+        if missing:
+            raise UsageError(f"the plant does not observe joint {', '.join(missing)}",
+                             hint="a plant reports every scene joint by name")
+        return np.array([obs.position[j] for j in self.transition.joints]
+                        + [obs.velocity[j] for j in self.transition.joints], dtype=float)
+
+
+def run(model: Model, plant: Plant, duration: float, *, refit_every: int = REFIT_EVERY,
+        controller: Controller | None = None, on_step=None) -> MpcResult:
+    """Drive ``plant`` for ``duration`` s; ``refit_every`` 0 never refits (the prior's centre
+    throughout). ``on_step(k, t, x, u, z)`` hears of each period."""
+    ctl = controller or Controller(model)
+    tr = ctl.transition
+    if not np.isclose(plant.period, tr.period, rtol=1e-6):
+        raise UsageError(f"the plant's period {plant.period:g} s differs from the scene's control "
+                         f"period {tr.period:g} s", hint="give the plant the scene's period")
+    steps = int(round(duration / tr.period))
+    obs = plant.reset()
+    x = ctl.state(obs)
+    z = jnp.asarray(tr.centre[tr.index])
+    W = jnp.zeros((tr.horizon, tr.nu))
+    for _ in range(FIRST_ITERATIONS // ctl.iterations):  # a cold plan (one compiled solve)
+        W, _, _ = ctl.plan(jnp.asarray(x), W, z, ctl.iterations)
+    memory = Memory.empty(tr.nx, tr.nu, CAPACITY)
+    times, states, forces, step_ms = [obs.t], [x], [], []
+    estimates = [_estimate(tr, 0, obs.t, z, None, 0.0)]
+    cost = 0.0
+    for k in range(steps):
+        start = time.perf_counter()
+        W, _, _ = ctl.plan(jnp.asarray(x), W, z, ctl.iterations)
+        u = np.asarray(ctl.squash(W[0]))
+        step_ms.append(1e3 * (time.perf_counter() - start))
+        cost += float(ctl.stage(jnp.asarray(x), W[0]))
+        obs = plant.step(dict(zip(tr.targets, (float(v) for v in u))))
+        x_next = ctl.state(obs)
+        memory.add(x, u, x_next)
+        x = x_next
+        W = jnp.concatenate([W[1:], W[-1:]])  # the warm start of the next period
+        times.append(obs.t), states.append(x), forces.append(u)
+        if refit_every and tr.physical and (k + 1) % refit_every == 0:
+            start = time.perf_counter()
+            z, cov = jax.block_until_ready(
+                ctl.fit(z, memory.x, memory.u, memory.x_next, memory.mask))
+            estimates.append(_estimate(tr, k + 1, obs.t, z, cov,
+                                       1e3 * (time.perf_counter() - start)))
+        if on_step is not None:
+            on_step(k, obs.t, x, u, z)
+    return MpcResult(tr.joints, tr.targets, np.asarray(times), np.asarray(states),
+                     np.asarray(forces).reshape(steps, tr.nu), np.asarray(step_ms), estimates,
+                     ctl.holds, cost)
+
+
+def _estimate(tr: Transition, step: int, t: float, z, cov, ms: float) -> dict:
+    values = {n: float(np.ravel(v)[0]) for n, v in tr.physical_values(z).items()}
+    sd = constrained_sd(tr, z, cov) if cov is not None else {n: float("nan") for n in values}
+    return {"step": step, "t": t, "values": values, "sd": sd, "refit_ms": ms}
