@@ -27,7 +27,7 @@ app = typer.Typer(
 # Subcommand modules, in the order they appear in --help.
 COMMAND_MODULES = (
     "lint", "fmt", "infer", "check", "diagnose", "refine", "add_effect", "design_experiment",
-    "import_", "export", "sample", "render", "track", "batch", "control",
+    "import_", "export", "sample", "render", "track", "batch", "control", "mpc",
 )
 
 
