@@ -19,6 +19,7 @@ from typing import Iterable
 
 from .. import cache, io
 from ..errors import UsageError
+from ..infer.interrupt import termination
 from .executors import Executor, check_executor, make_executor
 from .jobs import DONE, FAILED, ATTEMPTS, Job, is_done, run_job
 from .progress import BatchProgress
@@ -122,26 +123,27 @@ def run_batch(command: str, patterns: Iterable[str], out: str | os.PathLike,
     records: list[dict] = []
     start = time.perf_counter()
     pool = None
-    try:
-        if todo:
-            if executor == "local":  # no idle processes: at most one per job
-                workers = min(workers or os.cpu_count() or 1, len(todo))
-            pool = executor if not isinstance(executor, str) else \
-                make_executor(executor, address, workers, retries)
-            head["executor"] = pool.describe()
-        _write_summary(out, head, skipped, records, start, "running")
-        if todo:
-            _collect(pool, todo, out, head, skipped, records, start,
-                     BatchProgress(len(todo), len(finished), enabled=progress))
-    except KeyboardInterrupt:
-        if pool is not None:
-            pool.shutdown(cancel=True)
-            pool = None
-        _write_summary(out, head, skipped, records, start, "interrupted")
-        raise
-    finally:
-        if pool is not None and pool is not executor:
-            pool.shutdown()
+    with termination():  # SIGTERM too stops the batch with its summary written
+        try:
+            if todo:
+                if executor == "local":  # no idle processes: at most one per job
+                    workers = min(workers or os.cpu_count() or 1, len(todo))
+                pool = executor if not isinstance(executor, str) else \
+                    make_executor(executor, address, workers, retries)
+                head["executor"] = pool.describe()
+            _write_summary(out, head, skipped, records, start, "running")
+            if todo:
+                _collect(pool, todo, out, head, skipped, records, start,
+                         BatchProgress(len(todo), len(finished), enabled=progress))
+        except KeyboardInterrupt:
+            if pool is not None:
+                pool.shutdown(cancel=True)
+                pool = None
+            _write_summary(out, head, skipped, records, start, "interrupted")
+            raise
+        finally:
+            if pool is not None and pool is not executor:
+                pool.shutdown()
     return _write_summary(out, head, skipped, records, start, "finished")
 
 
