@@ -18,9 +18,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from numpyro.infer.util import constrain_fn, potential_energy
+from scipy.optimize import minimize
 
 from ..expr import evaluate, references
 from ..observe import trajectory
+from ..physics.simulator import observe
 from .problem import unconstrained_layout, unraveler
 
 WINDOW_S = 0.2  # at most the first 0.2 s of a track ...
@@ -126,8 +128,6 @@ def data_start(problem, x0, others=()) -> np.ndarray | None:
     fn, mask = _objective(problem, tuple(sorted(names)), estimates)
     if not mask.any():
         return None
-    from scipy.optimize import minimize
-
     x0 = np.asarray(x0, dtype=float)
     best = None
     for start in (x0, *(np.asarray(o, dtype=float) for o in others)):
@@ -156,8 +156,6 @@ def _objective(problem, names: tuple[str, ...], estimates: list[Estimate]):
     """(jitted x -> (misfit at t = 0 + negative log prior, gradient), mask of x's coordinates
     that belong to ``names``). The estimates' numbers are arguments of the compiled program,
     not constants in it, so another recording of the same scene reuses it (physdsl/cache.py)."""
-    from ..physics.simulator import observe
-
     model = problem.model
     sim = model.simulator
 

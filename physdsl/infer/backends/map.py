@@ -18,6 +18,7 @@ import numpy as np
 from ...errors import InferenceError
 from ..base import (Backend, gauss_newton_fn, register_backend,  # noqa: F401 - re-exported
                     value_and_grad_fn, value_fn)
+from ..problem import unconstrained_layout
 
 
 def find_mode(problem, x0, steps: int = 300) -> np.ndarray:
@@ -311,8 +312,6 @@ LAPLACE_HINT = ("to sample the posterior from this mode instead, add `--fallback
 
 def coordinate_names(problem) -> list[str]:
     """The unknown (and component) each flat unconstrained coordinate belongs to."""
-    from ..problem import unconstrained_layout
-
     if problem.model is None:  # a bare log density (tests)
         return [f"x[{i}]" for i in range(problem.dim)]
     names = []
