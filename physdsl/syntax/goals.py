@@ -145,12 +145,14 @@ def decide(res, t: ast.GoalField) -> list[str]:
             raise res.err(PhysNameError, f"'{path}' is decided twice", node.span)
         u = res.unknowns.get(path)
         if u is None:
-            known = path in res.sources
-            msg = (f"'{path}' is a known value, not an unknown" if known else
-                   f"unknown name '{path}'{close(path, res.unknowns)}")
-            hint = (f"a decision is an unknown written with '~', e.g. param {path} ~ "
-                    "normal(1 m/s, 0.5 m/s)" if "." not in path else
-                    f"a decision is an unknown written with '~', e.g. {path} ~ normal(...)")
+            if path in res.sources:
+                msg = f"'{path}' is a known value, not an unknown"
+                hint = ("to decide it, make it an unknown: "
+                        + ("param " if "." not in path else "") + f"{path} ~ normal(MEAN, SD)")
+            else:
+                msg = f"unknown name '{path}'{close(path, res.unknowns)}"
+                hint = ("a decision is an unknown written with '~'; the scene's unknowns: "
+                        + (", ".join(res.unknowns) or "none"))
             raise res.err(PhysNameError, f"'decide' names unknowns; {msg}", node.span, hint)
         if u.discrete:
             raise res.err(PhysTypeError, f"'{path}' takes whole values; a decision is chosen "
