@@ -1,8 +1,8 @@
 """Model-predictive control that refits itself (``physdsl mpc``): iLQR over the scene's horizon
 from the plant's observed state at every control period, the first planned force applied, the
 plan shifted and kept as the next warm start; every ``refit_every`` periods the physical
-unknowns are refitted (MAP, ``refit.map_fit``) from the transitions seen so far, and the next
-plans use them. Nothing reads the plant's parameters: only its observations.
+unknowns are refitted (MAP, ``refit.map_fit``) from the transitions seen since the last
+refit with the last refit's Laplace approximation as prior, and the next plans use them. Nothing reads the plant's parameters: only its observations.
 
 The scene's goal is the cost: each ``hold`` term (``JOINT.angle from .. to .. -> VALUE within
 TOL``) is a stage cost ``((q - VALUE) / TOL)^2`` averaged over the horizon, the horizon's end
@@ -142,6 +142,7 @@ def run(model: Model, plant: Plant, duration: float, *, refit_every: int = REFIT
     for _ in range(FIRST_ITERATIONS // ctl.iterations):  # a cold plan (one compiled solve)
         W, _, _ = ctl.plan(jnp.asarray(x), W, z, ctl.iterations)
     memory = Memory.empty(tr.nx, tr.nu, CAPACITY)
+    precision, first = jnp.eye(len(z)), 1.0  # the first refit's prior: the model's
     times, states, forces, step_ms = [obs.t], [x], [], []
     estimates = [_estimate(tr, 0, obs.t, z, None, 0.0)]
     cost = 0.0
@@ -159,9 +160,11 @@ def run(model: Model, plant: Plant, duration: float, *, refit_every: int = REFIT
         times.append(obs.t), states.append(x), forces.append(u)
         if refit_every and tr.physical and (k + 1) % refit_every == 0:
             start = time.perf_counter()
-            z, cov = jax.block_until_ready(
-                ctl.fit(z, memory.x, memory.u, memory.x_next, memory.mask))
-            estimates.append(_estimate(tr, k + 1, obs.t, z, cov,
+            z, precision = jax.block_until_ready(ctl.fit(
+                z, memory.x, memory.u, memory.x_next, memory.mask, z, precision, first))
+            first = 0.0
+            memory.clear()
+            estimates.append(_estimate(tr, k + 1, obs.t, z, jnp.linalg.inv(precision),
                                        1e3 * (time.perf_counter() - start)))
         if on_step is not None:
             on_step(k, obs.t, x, u, z)

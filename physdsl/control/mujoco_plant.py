@@ -3,12 +3,12 @@
 Each ``step`` writes the forces to the actuators that drive the named joints (``ctrl``,
 divided by their gear) and advances MuJoCo by one control period of its own timesteps;
 observations are the joints' ``qpos``/``qvel`` by name, with Gaussian noise if asked.
+mujoco is an optional extra: imported when a plant is made.
 """
 from __future__ import annotations
 
 from typing import Mapping
 
-import mujoco
 import numpy as np
 
 from ..errors import UsageError
@@ -20,6 +20,9 @@ class MujocoPlant:
 
     def __init__(self, path: str, period: float = 0.02, initial: Mapping[str, float] | None = None,
                  seed: int = 0, noise: float = 0.0):
+        import mujoco  # optional extra (mujoco)
+
+        self.mj = mujoco
         self.model = mujoco.MjModel.from_xml_path(str(path))
         self.data = mujoco.MjData(self.model)
         self.period = float(period)
@@ -44,10 +47,10 @@ class MujocoPlant:
                 self.actuators[name] = (a, float(self.model.actuator_gear[a, 0]))
 
     def reset(self) -> Observation:
-        mujoco.mj_resetData(self.model, self.data)
+        self.mj.mj_resetData(self.model, self.data)
         for name, value in self.initial.items():
             self.data.qpos[self.model.jnt_qposadr[self.joints[name]]] = value
-        mujoco.mj_forward(self.model, self.data)
+        self.mj.mj_forward(self.model, self.data)
         return self._observe()
 
     def step(self, u: Mapping[str, float]) -> Observation:
@@ -59,7 +62,7 @@ class MujocoPlant:
             a, gear = self.actuators[target]
             self.data.ctrl[a] = value / gear
         for _ in range(self.substeps):
-            mujoco.mj_step(self.model, self.data)
+            self.mj.mj_step(self.model, self.data)
         return self._observe()
 
     def _observe(self) -> Observation:

@@ -18,7 +18,7 @@ from ..export.literals import literal, number
 from ..export.program import rebase_paths
 from ..goal import Effort, Hold, Reach
 from ..syntax import ast, parse
-from ..syntax.edit import value_set
+from ..syntax.edit import value_set, with_scene_items
 from ..syntax.printer import format_module
 from .cost import control_effects
 from .problem import ControlProblem
@@ -56,6 +56,8 @@ def planned_scene(problem: ControlProblem, plan: Plan, out_dir: Path) -> str:
     """The scene's text with each chosen control read from its CSV and each decision set."""
     scene = problem.model.scene
     module = parse(scene.source, str(scene.path or "<string>"))
+    if scene.path is not None:  # the scene's own files, seen from out_dir (the plan's lie there)
+        module = rebase_paths(module, Path(scene.path).parent, out_dir)
     uses = control_effects(scene)
     joints = {j.name for j in scene.joints}
     for name in plan.chosen:
@@ -65,8 +67,6 @@ def planned_scene(problem: ControlProblem, plan: Plan, out_dir: Path) -> str:
             module = _control_from_file(module, target, columns)
         else:
             module = value_set(module, name, literal(plan.values[name], scene.unknown(name).unit))
-    if scene.path is not None:
-        module = rebase_paths(module, Path(scene.path).parent, out_dir)
     return format_module(module)
 
 
@@ -79,7 +79,7 @@ def _control_from_file(module: ast.Module, target: str, columns: tuple[str, ...]
             block = ast.Block((gain,), it.block.span) if gain else None
             it = dataclasses.replace(it, file=control_file(target), columns=columns, block=block)
         items.append(it)
-    return dataclasses.replace(module, scene=dataclasses.replace(module.scene, items=tuple(items)))
+    return with_scene_items(module, items)
 
 
 def predicted_rows(problem: ControlProblem, plan: Plan) -> str:

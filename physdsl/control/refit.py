@@ -1,11 +1,12 @@
-"""Refit a controller's physical unknowns from the transitions it has seen: MAP with a Laplace
-covariance, warm-started from the last estimate.
+"""Refit a controller's physical unknowns online: MAP with a Laplace covariance, each refit
+from the transitions seen since the last one, the last refit's Laplace approximation as their
+prior (the model's prior at the first): a bounded memory that forgets nothing it learnt.
 
 Each transition (x, u, x') scores the model's prediction ``f(params(z), x, u)`` against x'
-with Gaussian noise (``PROCESS_NOISE``: coordinates, velocities); the prior of the unknowns
-adds its own term (unconstrained space, so every estimate stays in its prior's support).
-Levenberg-Marquardt on these few unknowns converges in a handful of steps; the memory holds
-the latest ``capacity`` transitions in fixed arrays (masked), so one compile serves the run.
+with Gaussian noise (``PROCESS_NOISE``: coordinates, velocities), in the prior's unconstrained
+space (every estimate stays in its prior's support). Levenberg-Marquardt on these few unknowns
+converges in a handful of steps, warm-started at the last estimate; the new transitions sit in
+fixed arrays (masked), so one compile serves the run.
 """
 from __future__ import annotations
 
@@ -19,7 +20,7 @@ from .transition import Transition
 
 PROCESS_NOISE = (1e-4, 1e-3)  # per period: coordinates (m, rad), velocities (m/s, rad/s)
 ITERATIONS = 12  # Levenberg-Marquardt steps per refit
-CAPACITY = 100  # transitions remembered (the latest)
+CAPACITY = 100  # transitions held between refits (the latest)
 
 
 @dataclass
@@ -37,6 +38,10 @@ class Memory:
         return cls(np.zeros((capacity, nx)), np.zeros((capacity, nu)), np.zeros((capacity, nx)),
                    np.zeros(capacity))
 
+    def clear(self) -> None:
+        self.mask[:] = 0.0
+        self.count = 0
+
     def add(self, x, u, x_next) -> None:
         i = self.count % len(self.mask)
         self.x[i], self.u[i], self.x_next[i], self.mask[i] = x, u, x_next, 1.0
@@ -44,7 +49,9 @@ class Memory:
 
 
 def map_fit(transition: Transition, noise=PROCESS_NOISE, iterations: int = ITERATIONS):
-    """A jitted (z0, x, u, x', mask) -> (z, covariance of z) for ``transition``'s unknowns."""
+    """A jitted (z0, x, u, x', mask, centre, precision, first) -> (z, precision of z) for
+    ``transition``'s unknowns: the prior is the model's where ``first`` is 1, else the Gaussian
+    of ``centre`` and ``precision`` (the last refit's Laplace approximation)."""
     half = len(transition.joints)
     scale = jnp.concatenate([jnp.full(half, noise[0]), jnp.full(half, noise[1])])
 
@@ -55,8 +62,13 @@ def map_fit(transition: Transition, noise=PROCESS_NOISE, iterations: int = ITERA
     def expand(z, data):
         """(loss, gradient, Gauss-Newton Hessian with the prior's exact Hessian) at ``z``:
         one forward-mode pass through the physics gives the residuals and their Jacobian."""
-        J, r = jax.jacfwd(lambda z: _twice(residuals(z, *data)), has_aux=True)(z)
-        prior = transition.neg_log_prior
+        x, u, x_next, mask, centre, precision, first = data
+        J, r = jax.jacfwd(lambda z: _twice(residuals(z, x, u, x_next, mask)), has_aux=True)(z)
+
+        def prior(z):
+            d = z - centre
+            return first * transition.neg_log_prior(z) + (1.0 - first) * 0.5 * d @ precision @ d
+
         H = J.T @ J + jax.hessian(prior)(z)
         return 0.5 * r @ r + prior(z), J.T @ r + jax.grad(prior)(z), 0.5 * (H + H.T)
 
@@ -70,11 +82,11 @@ def map_fit(transition: Transition, noise=PROCESS_NOISE, iterations: int = ITERA
         return keep + (jnp.where(better, damping / 3.0, damping * 4.0), data)
 
     @jax.jit
-    def fit(z0, x, u, x_next, mask):
-        data = (x, u, x_next, mask)
+    def fit(z0, x, u, x_next, mask, centre, precision, first):
+        data = (x, u, x_next, mask, centre, precision, first)
         z, (_, _, H), _, _ = jax.lax.fori_loop(0, iterations, iteration,
                                                (z0, expand(z0, data), 1e-3, data))
-        return z, jnp.linalg.inv(H)
+        return z, H
 
     return fit
 

@@ -22,7 +22,8 @@ def _field(key: str, value_text: str) -> ast.Field:
     return strip_spans(parse_field(src))
 
 
-def _with_scene_items(module: ast.Module, items) -> ast.Module:
+def with_scene_items(module: ast.Module, items) -> ast.Module:
+    """``module`` with its scene's items replaced by ``items``."""
     scene = module.scene
     if scene is None:
         raise PhysNameError("the text holds no scene")
@@ -44,7 +45,7 @@ def effect_added(module: ast.Module, effect: str, target, params: dict[str, str]
         raise PhysNameError("the text holds no scene")
     fields = tuple(_field(k, v) for k, v in (params or {}).items())
     item = ast.EffectItem(effect, _target(target), ast.Block(fields) if fields else None)
-    return _with_scene_items(module, module.scene.items + (item,))
+    return with_scene_items(module, module.scene.items + (item,))
 
 
 def param_added(module: ast.Module, name: str, value_text: str) -> ast.Module:
@@ -56,7 +57,7 @@ def param_added(module: ast.Module, name: str, value_text: str) -> ast.Module:
         raise PhysNameError(f"the scene already has a param '{name}'")
     last = max((i for i, it in enumerate(items) if isinstance(it, ast.Param)), default=-1)
     items.insert(last + 1, _param(name, value_text))
-    return _with_scene_items(module, items)
+    return with_scene_items(module, items)
 
 
 def _set_field(block: ast.Block | None, key_path: list[str], value_text: str) -> ast.Block:
@@ -127,21 +128,21 @@ def value_set(module: ast.Module, path: str, value_text: str) -> ast.Module:
         for i, it in enumerate(items):
             if isinstance(it, ast.Param) and it.name == path:
                 items[i] = dataclasses.replace(_param(path, value_text), span=it.span)
-                return _with_scene_items(module, items)
+                return with_scene_items(module, items)
         raise PhysNameError(f"no param '{path}' in the scene")
     head, rest = parts[0], parts[1:]
     for i, it in enumerate(items):
         if isinstance(it, ast.ObserveItem) and f"{it.target}.{it.quantity}" == ".".join(parts[:2]) \
                 and len(rest) == 2:
             items[i] = dataclasses.replace(it, block=_set_field(it.block, rest[1:], value_text))
-            return _with_scene_items(module, items)
+            return with_scene_items(module, items)
     for i, it in enumerate(items):
         name = getattr(it, "name", None)
         if head == "world" and isinstance(it, ast.WorldItem) or head == "light" and \
                 isinstance(it, ast.LightItem) or (name == head and hasattr(it, "block")
                                                   and not isinstance(it, ast.Param)):
             items[i] = dataclasses.replace(it, block=_set_field(it.block, rest, value_text))
-            return _with_scene_items(module, items)
+            return with_scene_items(module, items)
     raise PhysNameError(f"nothing called '{head}' in the scene")
 
 
@@ -155,15 +156,15 @@ def _effect_value_set(module: ast.Module, items: list, path: str, value_text: st
         if isinstance(it, ast.EffectItem) and it.effect == effect and \
                 (it.target == tgt or (len(tgt) == 2 and set(it.target) == set(tgt))):
             items[i] = dataclasses.replace(it, block=_set_field(it.block, [param], value_text))
-            return _with_scene_items(module, items)
+            return with_scene_items(module, items)
         if isinstance(it, ast.ContactItem) and effect in SUGAR_FIELD and \
                 {it.a, it.b} == set(tgt) and param == SUGAR_PARAM:
             items[i] = dataclasses.replace(
                 it, block=_set_field(it.block, [SUGAR_FIELD[effect]], value_text))
-            return _with_scene_items(module, items)
+            return with_scene_items(module, items)
         if isinstance(it, ast.WorldItem) and effect == "gravity" and param == "acceleration":
             items[i] = dataclasses.replace(it, block=_set_field(it.block, ["gravity"], value_text))
-            return _with_scene_items(module, items)
+            return with_scene_items(module, items)
     raise PhysNameError(f"no effect '{key}' in the scene")
 
 
@@ -219,7 +220,7 @@ def item_removed(module: ast.Module, kind: str, name: str) -> ast.Module:
     removed = [it for it in items if it not in kept]
     comments = tuple(c for c in module.comments if not any(_inside(c, it) for it in removed))
     module = dataclasses.replace(module, comments=comments)
-    return _with_scene_items(module, kept)
+    return with_scene_items(module, kept)
 
 
 
