@@ -53,7 +53,7 @@ def register(app: typer.Typer) -> None:
         """Closed-loop control with online refits: trajectory.csv, estimates.csv, mpc.json."""
         from .. import api
         from ..control import mpc, mpc_files
-        from ..control.plant import check_plant_spec, load_plant
+        from ..control.plant_spec import check_plant_spec, load_plant
         from ..io import prepare_outdir
 
         start = parse_initial(initial)
