@@ -128,10 +128,14 @@ def targets(scene, cand: Candidate) -> list[str]:
     return [p.phys_target() for p in cand.parts()]
 
 
-def with_effect(scene, cand: Candidate) -> str:
-    """The scene's text with ``cand`` added (``Draft.add``): what ``add-effect`` writes."""
+def with_effect(scene, *cands: Candidate) -> str:
+    """The scene's text with ``cands`` added (``Draft.add``, each as ``scene`` would have it):
+    what ``add-effect`` writes."""
     draft = Draft.of(scene)
-    return format_module(draft.add(cand), draft.source)
+    module = draft.module
+    for cand in cands:
+        module = draft.add(cand, module)
+    return format_module(module, draft.source)
 
 
 def _pairs_with(scene, cand: Candidate) -> list[tuple[str, ...]]:

@@ -123,9 +123,7 @@ def steep(tmp_path_factory):
 
 
 def _start(folder, naive, *effects) -> str:
-    text = naive.source
-    for name in effects:
-        text = with_effect(naive, Candidate("effect", name, ("ball",)), text)
+    text = with_effect(naive, *(Candidate("effect", name, ("ball",)) for name in effects))
     (folder / "start.phys").write_text(text)
     return folder / "start.phys"
 

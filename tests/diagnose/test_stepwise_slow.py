@@ -59,8 +59,8 @@ def test_refine_finds_damping_in_one_hinge_and_friction_in_the_other(tmp_path):
     _write(tmp_path, times, {"shoulder.angle": np.zeros((201, 1)), "elbow.angle": np.zeros((201, 1)),
                              "link2.position": np.zeros((201, 3))})
     naive = load_scene(tmp_path, DOUBLE, "naive.phys")
-    text = with_effect(naive, Candidate("effect", "joint_damping", ("shoulder",)))
-    text = with_effect(naive, Candidate("effect", "joint_friction", ("elbow",)), text)
+    text = with_effect(naive, Candidate("effect", "joint_damping", ("shoulder",)),
+                       Candidate("effect", "joint_friction", ("elbow",)))
     truth = Model(load_text(naive, text))
     values = {"shoulder.initial": np.radians(50.0), "elbow.initial": np.radians(-30.0),
               "joint_damping@shoulder.coefficient": 0.004, "joint_friction@elbow.torque": 0.002}
