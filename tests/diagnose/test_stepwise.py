@@ -161,9 +161,10 @@ def test_the_loop_drops_an_effect_whose_evidence_vanished(steep, tmp_path):
     left = load(r1.scene)
     assert {(e.effect, tuple(e.target)) for e in left.effects if e.effect != "gravity"} == \
         {("quadratic_drag", ("ball",))}
-    # the scene with both drags can fit into a poor basin with no Laplace approximation
-    # (measured: 3.15σ, log Z n/a; ΔELPD then decides); where both evidences exist they agree
-    assert r1.consistent and r1.rms_sigma < rounds[0].rms_sigma
+    # the drop costs no fit: with both drags the fit reaches 0.901σ (the multistart's data
+    # starts; it once stopped in a poor basin at 3.15σ), without the linear one 0.908σ;
+    # where both evidences exist they agree
+    assert r1.consistent and r1.rms_sigma < rounds[0].rms_sigma + 0.05
     assert rounds[0].log_evidence is None or r1.log_evidence > rounds[0].log_evidence
 
 
