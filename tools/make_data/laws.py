@@ -18,7 +18,8 @@ import textwrap
 import mujoco
 import numpy as np
 
-from mjgen import EXAMPLES, add_noise, mjcf, rollout, write_angles, write_positions, write_truth
+from mjgen import EXAMPLES, mjcf, rollout, write_recording
+from no_effect import pendulum_scene, pendulum_xml
 from scenes import write_scene
 
 HIDDEN = EXAMPLES / "hidden-effect"
@@ -95,16 +96,9 @@ def simulate(truth: dict) -> tuple[np.ndarray, dict[str, np.ndarray], dict[str, 
     effect = truth["hidden_effect"]["effect"]
     value = next(iter(v for k, v in truth["parameters"].items() if "@" in k))
     if truth["kind"] == "hinge":
-        L, r = p["length_m"], p["bob_radius_m"]
-        px, py, pz = p["pivot_m"]
         law = (f'damping="{value}"' if effect == "joint_damping" else
                f'frictionloss="{value}" solreffriction="{SOLREF_FRICTION}"')
-        body = f"""<body name="pendulum" pos="{px} {py} {pz}">
-      <joint name="hinge" type="hinge" axis="0 -1 0" {law}/>
-      <geom type="capsule" fromto="0 0 0 0 0 {-(L - r)}" size="{p['rod_radius_m']}" mass="{p['rod_mass_kg']}"/>
-      <geom type="sphere" pos="0 0 {-L}" size="{r}" mass="{p['bob_mass_kg']}"/>
-      <site name="bob" pos="0 0 {-L}"/></body>"""
-        model = mujoco.MjModel.from_xml_string(mjcf(body, timestep=ts))
+        model = mujoco.MjModel.from_xml_string(mjcf(pendulum_xml(p, law), timestep=ts))
         data = mujoco.MjData(model)
         data.qpos[0] = p["initial_rad"]
         t, s = rollout(model, data, p["duration_s"],
@@ -130,40 +124,12 @@ def simulate(truth: dict) -> tuple[np.ndarray, dict[str, np.ndarray], dict[str, 
 def naive_scene(truth: dict) -> str:
     name = truth["scene"]
     if truth["kind"] == "hinge":
-        return f"""# A pendulum (thin rod + 300 g bob) hangs from a hinge at (0, 0, 1.2) m and swings in the
+        header = """# A pendulum (thin rod + 300 g bob) hangs from a hinge at (0, 0, 1.2) m and swings in the
 # x-z plane after release from rest. Tracked at 100 Hz for 3 s: bob centre (trajectory.csv,
 # 2 mm) and hinge encoder (joints.csv, 3 mrad). First model: an ideal rigid pendulum.
-# Unknown: the length L and the release angle.
-
-scene {name} {{
-  world {{ timestep: 1 ms  integrator: rk4 }}
-
-  param L ~ normal(0.5 m, 5 cm)  # hinge axis to bob centre
-  param r: 4 cm
-
-  body rod {{
-    shape: capsule(radius: 5 mm, length: L - r)
-    mass: 10 g
-    position: (0, 0, 1.2 m - (L - r) / 2)
-  }}
-  body bob {{
-    shape: sphere(radius: r)
-    mass: 300 g
-    position: (0, 0, 1.2 m - L)
-  }}
-
-  joint hinge: hinge(world -> rod) {{
-    axis: (0, -1, 0)  # positive angle: bob towards +x
-    anchor: (0, 0, 1.2) m
-    initial ~ normal(45 deg, 10 deg)
-    initial_velocity: 0 rad/s
-  }}
-  joint weld: fixed(rod -> bob)
-
-  observe bob.position from "trajectory.csv" where body == "bob" {{ noise: 2 mm }}
-  observe hinge.angle from "joints.csv" where joint == "hinge" {{ noise: 3 mrad }}
-}}
-"""
+# Unknown: the length L and the release angle."""
+        return pendulum_scene(name, truth["physical_parameters"], header, "normal(0.5 m, 5 cm)",
+                              "normal(45 deg, 10 deg)")
     return f"""# A ball (11 cm radius, 430 g) is thrown steeply up at about 20 m/s in still air and tracked at
 # 100 Hz for 3 s, up past its highest point and down again, before it lands (trajectory.csv,
 # 10 mm per axis). First model: a projectile under gravity alone. Unknown: where the ball
@@ -189,15 +155,10 @@ def write_case(name: str, root=HIDDEN) -> dict:
     truth = truth_of(name)
     out = root / name
     out.mkdir(parents=True, exist_ok=True)
-    t, angles, positions = simulate(truth)
-    rng = np.random.default_rng(truth["noise"]["seed"])
-    write_positions(out / "trajectory.csv", t, add_noise(positions, truth["noise"]["sigma_position_m"], rng))
-    if angles:
-        write_angles(out / "joints.csv", t, add_noise(angles, truth["noise"]["sigma_angle_rad"], rng))
+    write_recording(out, truth, *simulate(truth))
     write_scene(out / "naive.phys", naive_scene(truth))
     title, body = CASES[name]["readme"]
     (out / "README.md").write_text(f"# {title}\n\n{textwrap.fill(body, 95)}\n")
-    write_truth(out / "truth.json", truth)
     return truth
 
 

@@ -109,3 +109,13 @@ def write_angle_example(name: str, truth: dict, simulate) -> None:
     write_angles(out / "joints.csv", t, add_noise(angles, truth["noise"]["sigma_angle_rad"], rng))
     write_positions(out / "trajectory.csv", t, add_noise(positions, truth["noise"]["sigma_position_m"], rng))
     write_truth(out / "truth.json", truth)
+
+
+def write_recording(out: Path, truth: dict, times: np.ndarray, angles: dict[str, np.ndarray],
+                    positions: dict[str, np.ndarray]) -> None:
+    """Noisy trajectory.csv (positions first), joints.csv (where there are joints) and truth.json."""
+    rng = np.random.default_rng(truth["noise"]["seed"])
+    write_positions(out / "trajectory.csv", times, add_noise(positions, truth["noise"]["sigma_position_m"], rng))
+    if angles:
+        write_angles(out / "joints.csv", times, add_noise(angles, truth["noise"]["sigma_angle_rad"], rng))
+    write_truth(out / "truth.json", truth)

@@ -15,7 +15,7 @@ import math
 import mujoco
 import numpy as np
 
-from mjgen import EXAMPLES, add_noise, mjcf, rollout, write_angles, write_positions, write_truth
+from mjgen import EXAMPLES, mjcf, rollout, write_recording
 from scenes import write_scene
 
 OUT = EXAMPLES / "no-effect"
@@ -66,6 +66,52 @@ def case_truth(kind: str, index: int) -> dict:
             "simulator": {**SIM, "timestep_s": timestep}}
 
 
+def pendulum_xml(p: dict, joint_attrs: str = "") -> str:
+    """MJCF of a rod-and-bob pendulum on a hinge at ``pivot_m`` (axis -y), the bob ``length_m`` below."""
+    px, py, pz = p["pivot_m"]
+    L, r = p["length_m"], p["bob_radius_m"]
+    return f"""<body name="pendulum" pos="{px} {py} {pz}">
+      <joint name="hinge" type="hinge" axis="0 -1 0" {joint_attrs}/>
+      <geom type="capsule" fromto="0 0 0 0 0 {-(L - r)}" size="{p['rod_radius_m']}" mass="{p['rod_mass_kg']}"/>
+      <geom type="sphere" pos="0 0 {-L}" size="{r}" mass="{p['bob_mass_kg']}"/>
+      <site name="bob" pos="0 0 {-L}"/></body>"""
+
+
+def pendulum_scene(name: str, p: dict, header: str, length_prior: str, angle_prior: str) -> str:
+    """The rigid pendulum of ``pendulum_xml`` as a naive scene: unknown L and release angle."""
+    return f"""{header}
+
+scene {name} {{
+  world {{ timestep: 1 ms  integrator: rk4 }}
+
+  param L ~ {length_prior}  # hinge axis to bob centre
+  param r: 4 cm
+
+  body rod {{
+    shape: capsule(radius: 5 mm, length: L - r)
+    mass: 10 g
+    position: (0, 0, 1.2 m - (L - r) / 2)
+  }}
+  body bob {{
+    shape: sphere(radius: r)
+    mass: {p['bob_mass_kg'] * 1000:g} g
+    position: (0, 0, 1.2 m - L)
+  }}
+
+  joint hinge: hinge(world -> rod) {{
+    axis: (0, -1, 0)  # positive angle: bob towards +x
+    anchor: (0, 0, 1.2) m
+    initial ~ {angle_prior}
+    initial_velocity: 0 rad/s
+  }}
+  joint weld: fixed(rod -> bob)
+
+  observe bob.position from "trajectory.csv" where body == "bob" {{ noise: 2 mm }}
+  observe hinge.angle from "joints.csv" where joint == "hinge" {{ noise: 3 mrad }}
+}}
+"""
+
+
 def build(truth: dict) -> tuple[mujoco.MjModel, mujoco.MjData]:
     """The case's MuJoCo model and its initial state."""
     kind, p = truth["kind"], truth["physical_parameters"]
@@ -78,14 +124,7 @@ def build(truth: dict) -> tuple[mujoco.MjModel, mujoco.MjData]:
         data = mujoco.MjData(model)
         data.qvel[:3] = p["velocity_m_s"]
     elif kind == "pendulum":
-        px, py, pz = p["pivot_m"]
-        L, r = p["length_m"], p["bob_radius_m"]
-        body = f"""<body name="pendulum" pos="{px} {py} {pz}">
-      <joint name="hinge" type="hinge" axis="0 -1 0"/>
-      <geom type="capsule" fromto="0 0 0 0 0 {-(L - r)}" size="{p['rod_radius_m']}" mass="{p['rod_mass_kg']}"/>
-      <geom type="sphere" pos="0 0 {-L}" size="{r}" mass="{p['bob_mass_kg']}"/>
-      <site name="bob" pos="0 0 {-L}"/></body>"""
-        model = mujoco.MjModel.from_xml_string(mjcf(body, timestep=ts))
+        model = mujoco.MjModel.from_xml_string(mjcf(pendulum_xml(p), timestep=ts))
         data = mujoco.MjData(model)
         data.qpos[0] = p["initial_rad"]
     elif kind == "rail":
@@ -155,39 +194,11 @@ scene {truth['scene']} {{
 }}
 """
     if kind == "pendulum":
-        return f"""# A pendulum (thin rod + {p['bob_mass_kg'] * 1000:g} g bob) hangs from a hinge at (0, 0, 1.2) m and swings
+        header = f"""# A pendulum (thin rod + {p['bob_mass_kg'] * 1000:g} g bob) hangs from a hinge at (0, 0, 1.2) m and swings
 # in the x-z plane after release from rest. Tracked at 100 Hz for {p['duration_s']:g} s: bob centre
-# (trajectory.csv, 2 mm) and hinge encoder (joints.csv, 3 mrad). Unknown: L, the release angle.
-
-scene {truth['scene']} {{
-  world {{ timestep: 1 ms  integrator: rk4 }}
-
-  param L ~ normal({round(p['length_m'], 1):g} m, 10 cm)  # hinge axis to bob centre
-  param r: 4 cm
-
-  body rod {{
-    shape: capsule(radius: 5 mm, length: L - r)
-    mass: 10 g
-    position: (0, 0, 1.2 m - (L - r) / 2)
-  }}
-  body bob {{
-    shape: sphere(radius: r)
-    mass: {p['bob_mass_kg'] * 1000:g} g
-    position: (0, 0, 1.2 m - L)
-  }}
-
-  joint hinge: hinge(world -> rod) {{
-    axis: (0, -1, 0)
-    anchor: (0, 0, 1.2) m
-    initial ~ normal({round(math.degrees(p['initial_rad']) / 10) * 10:g} deg, 10 deg)
-    initial_velocity: 0 rad/s
-  }}
-  joint weld: fixed(rod -> bob)
-
-  observe bob.position from "trajectory.csv" where body == "bob" {{ noise: 2 mm }}
-  observe hinge.angle from "joints.csv" where joint == "hinge" {{ noise: 3 mrad }}
-}}
-"""
+# (trajectory.csv, 2 mm) and hinge encoder (joints.csv, 3 mrad). Unknown: L, the release angle."""
+        return pendulum_scene(truth["scene"], p, header, f"normal({round(p['length_m'], 1):g} m, 10 cm)",
+                              f"normal({round(math.degrees(p['initial_rad']) / 10) * 10:g} deg, 10 deg)")
     if kind == "rail":
         a = math.radians(p["incline_deg"])
         return f"""# A {p['mass_kg'] * 1000:g} g block runs on a straight rail tilted {p['incline_deg']:g} degrees up towards +x
@@ -253,13 +264,8 @@ def write_case(truth: dict, root=OUT) -> None:
     """Simulate ``truth`` and write its data, naive scene and truth.json under ``root``."""
     out = root / truth["scene"]
     out.mkdir(parents=True, exist_ok=True)
-    t, angles, positions = simulate(truth)
-    rng = np.random.default_rng(truth["noise"]["seed"])
-    write_positions(out / "trajectory.csv", t, add_noise(positions, truth["noise"]["sigma_position_m"], rng))
-    if angles:
-        write_angles(out / "joints.csv", t, add_noise(angles, truth["noise"]["sigma_angle_rad"], rng))
+    write_recording(out, truth, *simulate(truth))
     write_scene(out / "naive.phys", naive_scene(truth))
-    write_truth(out / "truth.json", truth)
 
 
 def main() -> None:
