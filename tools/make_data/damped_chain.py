@@ -18,7 +18,7 @@ import mujoco
 import numpy as np
 
 from mjgen import EXAMPLES, add_noise, mjcf, rollout, write_angles, write_truth
-from scenes import write_scene
+from scene_files import write_scene
 
 NAME = "damped_chain"
 LINKS = 4

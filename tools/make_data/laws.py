@@ -20,7 +20,7 @@ import numpy as np
 
 from mjgen import EXAMPLES, mjcf, rollout, write_recording
 from no_effect import pendulum_scene, pendulum_xml
-from scenes import write_scene
+from scene_files import write_scene
 
 HIDDEN = EXAMPLES / "hidden-effect"
 SIM = {"engine": f"MuJoCo {mujoco.__version__}", "integrator": "RK4"}

@@ -16,7 +16,7 @@ import mujoco
 import numpy as np
 
 from mjgen import EXAMPLES, mjcf, rollout, write_recording
-from scenes import write_scene
+from scene_files import write_scene
 
 OUT = EXAMPLES / "no-effect"
 KINDS = ("throw", "pendulum", "rail", "spring")
