@@ -4,7 +4,8 @@ that lowers ``sum_k stage(x_k, w_k) + final(x_H)`` along ``x_{k+1} = f(x_k, w_k)
 Each iteration linearises ``f`` along the current trajectory (``jacfwd``, one batched
 call), takes second-order expansions of the costs, runs the Riccati backward pass, and
 rolls the feedback policy forward at several step lengths at once (``vmap``), keeping the
-cheapest (length 0 is the unchanged plan, so the cost never rises). The whole solve is one
+cheapest finite one if it beats the unchanged plan (so the cost never rises, and a step that
+overflows is never taken). The whole solve is one
 traced function of (x0, W, params): a receding-horizon controller compiles it once and
 warm-starts each step from the previous plan shifted by one.
 """
@@ -13,7 +14,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-STEP_LENGTHS = (1.0, 0.5, 0.25, 0.1, 0.03, 0.0)
+STEP_LENGTHS = (1.0, 0.5, 0.25, 0.1, 0.03)
 REGULARISATION = 1e-6  # added to the control Hessian (after shifting it positive definite)
 
 
@@ -84,12 +85,17 @@ def solve(f, stage, final, x0, W, iterations: int):
     lengths = jnp.asarray(STEP_LENGTHS, dtype=X.dtype)
 
     def iteration(carry, _):
-        W, X = carry
+        W, X, cost = carry
         ks, Ks = _backward(f, stage, final, X, W)
         Xs, Ws = jax.vmap(lambda a: _forward(f, X, W, ks, Ks, a))(lengths)
         costs = jax.vmap(lambda X, W: total_cost(stage, final, X, W))(Xs, Ws)
-        best = jnp.argmin(jnp.where(jnp.isfinite(costs), costs, jnp.inf))
-        return (Ws[best], Xs[best]), None
+        costs = jnp.where(jnp.isfinite(costs) & jnp.all(jnp.isfinite(Ws), axis=(1, 2)),
+                          costs, jnp.inf)
+        best = jnp.argmin(costs)
+        better = costs[best] < cost
+        return (jnp.where(better, Ws[best], W), jnp.where(better, Xs[best], X),
+                jnp.where(better, costs[best], cost)), None
 
-    (W, X), _ = jax.lax.scan(iteration, (W, X), None, length=iterations)
-    return W, X, total_cost(stage, final, X, W)
+    (W, X, cost), _ = jax.lax.scan(iteration, (W, X, total_cost(stage, final, X, W)), None,
+                                   length=iterations)
+    return W, X, cost

@@ -150,6 +150,10 @@ def run(model: Model, plant: Plant, duration: float, *, refit_every: int = REFIT
         start = time.perf_counter()
         W, _, _ = ctl.plan(jnp.asarray(x), W, z, ctl.iterations)
         u = np.asarray(ctl.squash(W[0]))
+        if not np.all(np.isfinite(u)):
+            raise ModelError(f"mpc: the plan at t = {obs.t:g} s is not finite (state "
+                             f"{np.round(x, 4).tolist()}); nothing was sent to the plant",
+                             hint="check the scene's physics at this state (`physdsl lint`)")
         step_ms.append(1e3 * (time.perf_counter() - start))
         cost += float(ctl.stage(jnp.asarray(x), W[0]))
         obs = plant.step(dict(zip(tr.targets, (float(v) for v in u))))
