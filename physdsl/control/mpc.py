@@ -5,7 +5,8 @@ unknowns are refitted (MAP, ``refit.map_fit``) from the transitions seen since t
 refit with the last refit's Laplace approximation as prior, and the next plans use them. Nothing reads the plant's parameters: only its observations.
 
 The scene's goal is the cost: each ``hold`` term (``JOINT.angle from .. to .. -> VALUE within
-TOL``) is a stage cost ``((q - VALUE) / TOL)^2`` averaged over the horizon, the horizon's end
+TOL``) is a stage cost ``(e / TOL)^2`` averaged over the horizon (``e = q - VALUE`` for a slider,
+the chord ``2 sin((q - VALUE) / 2)`` for a hinge: the same near VALUE, periodic in the angle), the horizon's end
 weighing ``TERMINAL`` steps more (it stands for the future beyond the horizon), plus the
 effort ``weight * u^2 * period``. Forces are planned in the control prior's unconstrained space,
 so they stay within its bounds (``uniform(-10 N, 10 N)``).
@@ -47,6 +48,7 @@ class MpcResult:
     estimates: list[dict] = field(default_factory=list)  # t, step, values, sd, refit_ms
     holds: tuple[Hold, ...] = ()
     cost: float = 0.0  # the goal's stage cost summed over the run
+    hinges: tuple[bool, ...] = ()  # per joint: its coordinate is a periodic angle
 
     def hold_errors(self, settle: float = 0.0) -> list[float]:
         """Each hold term's largest error (its unit) from ``settle`` s to the end."""
@@ -54,7 +56,10 @@ class MpcResult:
         out = []
         for term in self.holds:
             j = self.joints.index(term.joint)
-            out.append(float(np.max(np.abs(self.states[after, j] - term.value))))
+            d = self.states[after, j] - term.value
+            if self.hinges and self.hinges[j]:  # an angle: the nearest turn
+                d = np.mod(d + np.pi, 2 * np.pi) - np.pi
+            out.append(float(np.max(np.abs(d))))
         return out
 
     def held(self, settle: float = 0.0) -> bool:
@@ -67,10 +72,13 @@ def goal_costs(transition: Transition, holds, weight: float, squash):
     columns = jnp.asarray([transition.joints.index(h.joint) for h in holds], dtype=int)
     targets = jnp.asarray([h.value for h in holds])
     tolerance = jnp.asarray([h.within for h in holds])
+    hinge = jnp.asarray([transition.hinges[transition.joints.index(h.joint)] for h in holds])
     per_step = 1.0 / (transition.horizon + 1)
 
     def miss(x):
-        return jnp.sum(((x[columns] - targets) / tolerance) ** 2) * per_step
+        d = x[columns] - targets
+        e = jnp.where(hinge, 2.0 * jnp.sin(0.5 * d), d)
+        return jnp.sum((e / tolerance) ** 2) * per_step
 
     def stage(x, w):
         u = squash(w)
@@ -174,7 +182,7 @@ def run(model: Model, plant: Plant, duration: float, *, refit_every: int = REFIT
             on_step(k, obs.t, x, u, z)
     return MpcResult(tr.joints, tr.targets, np.asarray(times), np.asarray(states),
                      np.asarray(forces).reshape(steps, tr.nu), np.asarray(step_ms), estimates,
-                     ctl.holds, cost)
+                     ctl.holds, cost, tr.hinges)
 
 
 def _estimate(tr: Transition, step: int, t: float, z, cov, ms: float) -> dict:

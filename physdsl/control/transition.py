@@ -47,6 +47,7 @@ class Transition:
     physical: tuple[str, ...]  # unknowns refitted from transitions
     index: np.ndarray  # their places in the flat unconstrained vector
     centre: np.ndarray  # the flat unconstrained vector at the prior's centre
+    hinges: tuple[bool, ...] = ()  # per joint: an angle (periodic) rather than a length
 
     @property
     def nx(self) -> int:
@@ -96,7 +97,7 @@ def build_transition(model: Model) -> Transition:
     sequences on an even time grid (their spacing is the control period)."""
     pm = model.simulator.model
     scene = model.scene
-    joints, qadr, vadr = [], [], []
+    joints, qadr, vadr, hinges = [], [], [], []
     for tj in pm.joints:
         if tj.scene_joint is None:
             continue
@@ -105,6 +106,7 @@ def build_transition(model: Model) -> Transition:
                              "the controller's state holds hinges and sliders only")
         joints.append(pm.joint_names[tj.scene_joint])
         qadr.append(tj.qadr)
+        hinges.append(tj.kind == "hinge")
         vadr.append(tj.vadr)
     if len(qadr) != pm.nq or len(vadr) != pm.nv:
         raise ModelError("mpc: every body must hang on a hinge or slider (no free bodies)",
@@ -135,7 +137,8 @@ def build_transition(model: Model) -> Transition:
     centre = np.asarray(prior_centre(model_problem(model), jax.random.PRNGKey(0)), dtype=float)
     targets = tuple(uses[n].key.split("@", 1)[1] for n in controls)
     return Transition(model, tuple(joints), np.asarray(qadr), np.asarray(vadr), controls, targets,
-                      sites, period, horizon, substeps, physical, index.astype(int), centre)
+                      sites, period, horizon, substeps, physical, index.astype(int), centre,
+                      tuple(hinges))
 
 
 def _grid(grids: list[np.ndarray], span) -> tuple[float, int]:
