@@ -19,7 +19,10 @@ from . import io, mjcf, syntax
 from .compile import Model, load_source
 from .compile import compile as _compile
 from .control import ControlProblem, Plan, build as _control_problem, optimise as _optimise
+from .control import mpc as _mpc
+from .control import mpc_files
 from .control.output import write_plan
+from .control.plant_spec import load_plant
 from .design.experiment import OBJECTIVES, Proposal, design, require_unknown
 from .diagnose.candidates import Candidate
 from .diagnose.edits import load_text, with_effect
@@ -46,7 +49,7 @@ from .track import Tracked, track_source
 __all__ = [
     "load", "compile", "infer", "check", "diagnose", "refine", "add_effect", "design_experiment",
     "render", "render_draws", "track", "export", "export_mjcf", "sample", "read_run",
-    "import_model", "format_source", "control",
+    "import_model", "format_source", "control", "mpc",
 ]
 
 format_source = syntax.format_source
@@ -139,6 +142,24 @@ def control(model: Model, goal: Goal | None = None, idata=None, *, outdir: str |
         io.prepare_outdir(outdir, force=force)
         write_plan(problem, plan, Path(outdir), time.perf_counter() - started)
     return problem, plan
+
+
+def mpc(model: Model, plant, duration: float, *, refit_every: int = 10, initial=None,
+        seed: int = 0, outdir: str | Path | None = None, force: bool = False, settle: float = 0.0,
+        settings: dict | None = None, on_step=None):
+    """Drive ``plant`` (an object with ``period``, ``reset()``, ``step()``; or an MJCF path or
+    ``"module:factory"``) for ``duration`` seconds by iLQR over the scene's horizon, refitting
+    the scene's physical unknowns every ``refit_every`` periods; an ``MpcResult`` (files in
+    ``outdir``: trajectory.csv, estimates.csv, mpc.json, judged from ``settle`` s on)."""
+    controller = _mpc.Controller(model)
+    if isinstance(plant, (str, Path)):
+        plant = load_plant(plant, period=controller.transition.period, initial=initial or {},
+                           seed=seed)
+    result = _mpc.run(model, plant, duration, refit_every=refit_every, controller=controller,
+                      on_step=on_step)
+    if outdir is not None:
+        mpc_files.write(result, outdir, settle=settle, force=force, settings=settings)
+    return result
 
 
 def _fitted_values(model: Model, idata=None) -> dict:

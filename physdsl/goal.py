@@ -6,7 +6,7 @@ into a cost. Every term is dimensionless once divided by its tolerance, so terms
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from .errors import Span
 
@@ -19,7 +19,7 @@ class Reach:
     at: float  # s
     point: tuple[float, float, float]  # m
     within: float  # m
-    span: Span | None = None
+    span: Span | None = field(default=None, compare=False)  # where it was written, not what
 
 
 @dataclass(frozen=True)
@@ -32,7 +32,7 @@ class Hold:
     start: float
     end: float
     within: float
-    span: Span | None = None
+    span: Span | None = field(default=None, compare=False)  # where it was written, not what
 
 
 @dataclass(frozen=True)
@@ -41,7 +41,7 @@ class Effort:
     per (N m)² s for torques): cheap pushes are preferred among those that meet the goal."""
 
     weight: float
-    span: Span | None = None
+    span: Span | None = field(default=None, compare=False)  # where it was written, not what
 
 
 @dataclass(frozen=True)
@@ -51,4 +51,4 @@ class Goal:
 
     terms: tuple[Reach | Hold | Effort, ...]
     decisions: tuple[str, ...] = ()
-    span: Span | None = None
+    span: Span | None = field(default=None, compare=False)  # where it was written, not what

@@ -52,27 +52,24 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Closed-loop control with online refits: trajectory.csv, estimates.csv, mpc.json."""
         from .. import api
-        from ..control import mpc, mpc_files
-        from ..control.plant_spec import check_plant_spec, load_plant
+        from ..control import mpc_files
+        from ..control.plant_spec import check_plant_spec
         from ..io import prepare_outdir
 
         start = parse_initial(initial)
         check_plant_spec(plant)
         prepare_outdir(out, force=force)  # refuse before the long part
         model = api.compile(scene, allowed_paths=allow_path or ())
-        controller = mpc.Controller(model)
-        the_plant = load_plant(plant, period=controller.transition.period, initial=start,
-                               seed=seed)
 
         def progress(k, t, x, u, z) -> None:
             if k % 25 == 0:
                 print(f"t {t:.2f} s: u {', '.join(f'{v:.3g}' for v in u)}", file=sys.stderr)
 
-        result = mpc.run(model, the_plant, duration, refit_every=refit_every,
-                         controller=controller, on_step=progress)
         settings = {"scene": str(scene), "plant": plant, "duration_s": duration,
                     "refit_every": refit_every, "initial": start, "seed": seed}
-        mpc_files.write(result, out, settle=settle, force=True, settings=settings)
+        result = api.mpc(model, plant, duration, refit_every=refit_every, initial=start, seed=seed,
+                         outdir=out, force=True, settle=settle, settings=settings,
+                         on_step=progress)
         summary = mpc_files.summary(result, settle)
         for joint, e in summary["hold_errors"].items():
             typer.echo(f"{joint}: max error {e['max_error']:.4g} (within {e['within']:g})")

@@ -67,7 +67,29 @@ def planned_scene(problem: ControlProblem, plan: Plan, out_dir: Path) -> str:
             module = _control_from_file(module, target, columns)
         else:
             module = value_set(module, name, literal(plan.values[name], scene.unknown(name).unit))
-    return format_module(module)
+    return format_module(_decided(module, set(plan.chosen)))
+
+
+def _decided(module: ast.Module, chosen: set[str]) -> ast.Module:
+    """``module`` whose goal no longer lists the chosen unknowns in ``decide:`` (they are known
+    values now); the line goes when nothing is left to decide."""
+    def name(node) -> str:
+        return node.name if isinstance(node, ast.Name) else ".".join(getattr(node, "parts", ()))
+
+    items = []
+    for it in module.scene.items:
+        if isinstance(it, ast.GoalItem):
+            terms = []
+            for t in it.terms:
+                if isinstance(t, ast.GoalField) and t.key == "decide":
+                    left = tuple(v for v in t.values if name(v) not in chosen)
+                    if not left:
+                        continue
+                    t = dataclasses.replace(t, values=left)
+                terms.append(t)
+            it = dataclasses.replace(it, terms=tuple(terms))
+        items.append(it)
+    return with_scene_items(module, items)
 
 
 def _control_from_file(module: ast.Module, target: str, columns: tuple[str, ...]) -> ast.Module:

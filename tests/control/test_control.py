@@ -8,6 +8,7 @@ import pytest
 
 import physdsl
 from physdsl.control import build, optimise
+from physdsl.control.output import planned_scene
 from physdsl.control.problem import cost_fn
 from physdsl.goal import Effort, Goal, Reach
 
@@ -21,6 +22,10 @@ scene throw {
     mass: 0.42 kg
     position: (0, 0, 1) m
     velocity ~ normal((4, 0, 4) m/s, 3 m/s)
+  }
+  goal {
+    ball.position at 0.5 s -> (2, 0.5, 1.2) m within 1 cm
+    decide: ball.velocity
   }
 }
 """
@@ -38,14 +43,20 @@ scene cart {
 """
 
 
-def test_a_throw_is_aimed_at_a_point_as_ballistics_says():
+def test_a_throw_is_aimed_at_a_point_as_ballistics_says(tmp_path):
     model = physdsl.compile(THROW)
-    goal = Goal((Reach("ball", 0.5, (2.0, 0.5, 1.2), 0.01),), decisions=("ball.velocity",))
-    plan = optimise(build(model, goal), screened=4, refined=1)
+    assert model.scene.goal == Goal((Reach("ball", 0.5, (2.0, 0.5, 1.2), 0.01),),
+                                    decisions=("ball.velocity",))
+    problem = build(model, model.scene.goal)
+    plan = optimise(problem, screened=4, refined=1)
     t = 0.5
     exact = np.array([2.0 / t, 0.5 / t, (0.2 + G * t * t / 2) / t])
     assert plan.met
     np.testing.assert_allclose(plan.values["ball.velocity"], exact, atol=1e-4)
+    # the planned scene: the velocity written in, nothing left to decide or infer
+    planned = physdsl.load(planned_scene(problem, plan, tmp_path))
+    assert planned.unknowns == () and planned.goal.decisions == ()
+    np.testing.assert_allclose(planned.body("ball").velocity.array(), exact, atol=1e-6)
 
 
 def test_a_push_that_meets_the_goal_spends_less_effort_than_a_constant_one():

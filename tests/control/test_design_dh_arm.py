@@ -69,8 +69,6 @@ def test_design_recovers_the_lengths_and_mujoco_reaches_the_targets(designed):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="planned.phys keeps `decide: a2, a3` after writing a2, a3 "
-                                       "as known params, so it does not load (control/output.py)")
 def test_planned_scene_is_the_designed_arm(designed):
     rc, out = designed
     planned = load_source(out / "planned.phys")

@@ -12,6 +12,9 @@ import pytest
 from conftest import EXAMPLES, HIDDEN, ROOT
 
 SCENES = sorted(p for p in EXAMPLES.rglob("*.phys"))
+# examples of using a model (control, design) state a goal and measure nothing
+GOALS = [p for p in SCENES if re.search(r"^\s*goal\s*\{", re.sub(r"#[^\n]*", "", p.read_text()), re.M)]
+FITTED = [p for p in SCENES if p not in GOALS]
 CASES = sorted(p for p in HIDDEN.iterdir() if p.is_dir())
 OBSERVE = re.compile(r'observe\s+(\w+)\.(\w+)\s+from\s+"([^"]+)"(?:\s+where\s+(\w+)\s*==\s*"([^"]+)")?')
 COLUMNS = {"position": ("x", "y", "z"), "orientation": ("qw", "qx", "qy", "qz"), "angle": ("angle",)}
@@ -41,7 +44,7 @@ def test_scene_parses(path):
     assert module is not None
 
 
-@pytest.mark.parametrize("path", SCENES, ids=lambda p: str(p.relative_to(EXAMPLES)))
+@pytest.mark.parametrize("path", FITTED, ids=lambda p: str(p.relative_to(EXAMPLES)))
 def test_observed_data_exist_in_long_format(path):
     obs = OBSERVE.findall(_code(path))
     assert obs, "an example observes something"
@@ -60,7 +63,7 @@ def test_observed_data_exist_in_long_format(path):
         assert t == sorted(t) and t[0] == 0.0
 
 
-@pytest.mark.parametrize("path", SCENES, ids=lambda p: str(p.relative_to(EXAMPLES)))
+@pytest.mark.parametrize("path", FITTED, ids=lambda p: str(p.relative_to(EXAMPLES)))
 def test_every_example_has_a_truth_naming_its_unknowns(path):
     truth = json.loads((path.parent / "truth.json").read_text())
     unknowns = truth["unknowns"] if "unknowns" in truth else {k: truth["parameters"][k] for k in truth["naive_unknowns"]}
@@ -103,10 +106,19 @@ def test_hidden_effect_case_is_complete(case):
     assert readme[0].startswith("# ") and 2 <= len(readme) - 1 <= 5
 
 
-@pytest.mark.parametrize("path", SCENES, ids=lambda p: str(p.relative_to(EXAMPLES)))
+@pytest.mark.parametrize("path", FITTED, ids=lambda p: str(p.relative_to(EXAMPLES)))
 def test_scene_resolves_with_the_unknowns_of_its_truth(path):
     syntax = pytest.importorskip("physdsl.syntax")
     scene = syntax.load(path)
     truth = json.loads((path.parent / "truth.json").read_text())
     expected = truth["unknowns"] if "unknowns" in truth else truth["naive_unknowns"]
     assert {u.name for u in scene.unknowns} == set(expected)
+
+
+@pytest.mark.parametrize("path", GOALS, ids=lambda p: str(p.relative_to(EXAMPLES)))
+def test_a_goal_example_resolves_with_its_goal_and_something_to_choose(path):
+    syntax = pytest.importorskip("physdsl.syntax")
+    scene = syntax.load(path)
+    assert scene.goal is not None and scene.goal.terms
+    controls = [u for u in scene.unknowns if u.name.startswith("control_force@")]
+    assert controls or scene.goal.decisions
