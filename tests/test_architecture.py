@@ -29,8 +29,9 @@ FLOORS = (
 # Sibling packages on one floor that must not know each other.
 INDEPENDENT = (("syntax", "physics"),)
 
-# Third-party libraries that are optional extras or slow to import: these may be imported where used.
-LAZY_LIBRARIES = {"mujoco", "cv2", "matplotlib", "ray", "trimesh", "playwright"}
+# Third-party libraries that are optional extras or slow to import (arviz + xarray: over a second,
+# which `physdsl lint` should not pay): these may be imported where used.
+LAZY_LIBRARIES = {"mujoco", "cv2", "matplotlib", "ray", "trimesh", "playwright", "arviz", "xarray"}
 
 MAX_FILE_LINES = 500
 MAX_FUNCTION_LINES = 80

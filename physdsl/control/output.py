@@ -10,22 +10,19 @@ import dataclasses
 import io as textio
 from pathlib import Path
 
-import matplotlib
 import numpy as np
 
 from .. import io
 from ..export.literals import literal, number
 from ..export.program import rebase_paths
 from ..goal import Effort, Hold, Reach
+from ..diagnose.report import new_figure, save_png
 from ..syntax import ast, parse
 from ..syntax.edit import value_set, with_scene_items
 from ..syntax.printer import format_module
 from .cost import control_effects
 from .problem import ControlProblem
 from .solve import Plan
-
-matplotlib.use("Agg")
-from matplotlib import pyplot as plt  # noqa: E402 - after the headless backend is chosen
 
 BODY_COLUMNS = ("fx", "fy", "fz", "tx", "ty", "tz")
 
@@ -143,15 +140,14 @@ def summary(problem: ControlProblem, plan: Plan, wall_s: float) -> dict:
 
 
 def cost_plot(plan: Plan, path: Path) -> None:
-    fig, ax = plt.subplots(figsize=(5, 3.2))
+    fig = new_figure(figsize=(5, 3.2))
+    ax = fig.add_subplot(1, 1, 1)
     ax.semilogy(np.maximum(np.asarray(plan.history), 1e-300))
     ax.set_xlabel("L-BFGS step")
     ax.set_ylabel("goal cost")
     ax.set_title("met" if plan.met else "not met")
     fig.tight_layout()
-    with io.atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=110)
-    plt.close(fig)
+    save_png(fig, path, dpi=110)
 
 
 def write_plan(problem: ControlProblem, plan: Plan, out_dir: Path, wall_s: float) -> list[Path]:

@@ -20,7 +20,6 @@ from dataclasses import dataclass, field
 from html import escape
 from pathlib import Path
 
-from matplotlib.figure import Figure
 
 from .. import io
 from ..compile import Model
@@ -32,7 +31,7 @@ from .edits import Draft
 from .loo import loo_reliability
 from .quality import fit_quality
 from .rank import diagnose
-from .report import html_page
+from .report import html_page, new_figure, save_png
 from .stepwise import judge, parse, reexamine
 from .workflow import check_model, point_estimate
 
@@ -289,7 +288,7 @@ def _html(out: Path, rounds: list[Round]) -> str:
 
 
 def _plot(out: Path, rounds: list[Round]) -> None:
-    fig = Figure(figsize=(6, 3.2))
+    fig = new_figure(figsize=(6, 3.2))
     ax = fig.add_subplot(1, 2, 1)
     idx = [r.index for r in rounds]
     ax.plot(idx, [r.rms_sigma for r in rounds], "o-")
@@ -302,5 +301,4 @@ def _plot(out: Path, rounds: list[Round]) -> None:
     ax2.set_xlabel("round")
     ax2.set_ylabel("ELPD (PSIS-LOO)")
     fig.tight_layout()
-    with io.atomic_path(out / "refine.png") as tmp:
-        fig.savefig(tmp, format="png", dpi=100)
+    save_png(fig, out / "refine.png", dpi=100)

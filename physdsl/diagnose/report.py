@@ -8,16 +8,17 @@ from __future__ import annotations
 import html
 import re
 from pathlib import Path
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 from ..io import atomic_path, write_json, write_text
 from .check import Finding, Report
 from .residuals import ObservableFit, Residuals, residuals
 from .windows import running_mean, smoothing_width
+
+if TYPE_CHECKING:  # matplotlib itself is imported on the first plot (new_figure)
+    from matplotlib.figure import Figure
 
 
 def slug(name: str) -> str:
@@ -51,15 +52,25 @@ def write_report(report: "Report", fits: Sequence[ObservableFit], outdir: Path) 
     return files
 
 
-def save_png(fig: Figure, path: Path) -> None:
-    """Render ``fig`` with Agg and write it atomically as PNG."""
+def new_figure(**options) -> "Figure":
+    """A matplotlib Figure drawn by Agg, no global pyplot state. matplotlib is imported here, on
+    the first plot: it is slow to import (a command that draws nothing should not pay it)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(**options)
     FigureCanvasAgg(fig)
+    return fig
+
+
+def save_png(fig: "Figure", path: Path, dpi: int = 90) -> None:
+    """Write ``fig`` atomically as PNG."""
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=90)
+        fig.savefig(tmp, format="png", dpi=dpi)
 
 
 def _axes(n: int, width: float = 8.0, height: float = 2.4):
-    fig = Figure(figsize=(width, height * n), layout="constrained")
+    fig = new_figure(figsize=(width, height * n), layout="constrained")
     return fig, [fig.add_subplot(n, 1, i + 1) for i in range(n)]
 
 
@@ -115,7 +126,7 @@ def plot_speed(res: Residuals, flags: list["Finding"]) -> Figure | None:
     if res.speed is None:
         return None
     n = len(res.axes)
-    fig = Figure(figsize=(3.2 * n, 3.0), layout="constrained")
+    fig = new_figure(figsize=(3.2 * n, 3.0), layout="constrained")
     for j in range(n):
         ax = fig.add_subplot(1, n, j + 1)
         ok = np.isfinite(res.r[:, j]) & np.isfinite(res.speed)

@@ -9,19 +9,26 @@ other. The version is looked at once, here, at import time.
 """
 from __future__ import annotations
 
+import importlib.metadata
 import importlib.util
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
-import arviz as az
 import numpy as np
-import xarray as xr
 
 from .. import io
 
-VERSION = az.__version__
+VERSION = importlib.metadata.version("arviz")
 MODERN = int(VERSION.split(".")[0]) >= 1  # arviz >= 1.0: DataTree, from_dict({group: ...})
+
+
+def _arviz():
+    """arviz, imported on first use (with xarray below): together they take over a second to
+    import, which a command that reads or writes no posterior should not pay."""
+    import arviz
+
+    return arviz
 
 
 def from_dict(groups: dict[str, dict | None], dims=None, coords=None):
@@ -29,8 +36,8 @@ def from_dict(groups: dict[str, dict | None], dims=None, coords=None):
     (chain, draw, ...); ``observed_data``: no sample dimensions). Empty groups are left out."""
     groups = {g: v for g, v in groups.items() if v}
     if MODERN:
-        return az.from_dict(groups, dims=dims, coords=coords)
-    return az.from_dict(**groups, dims=dims, coords=coords)
+        return _arviz().from_dict(groups, dims=dims, coords=coords)
+    return _arviz().from_dict(**groups, dims=dims, coords=coords)
 
 
 def group_names(idata) -> list[str]:
@@ -50,6 +57,8 @@ def add_group(idata, name: str, variables: dict, attrs: dict | None = None):
     ds = group(from_dict({"posterior": variables}), "posterior")
     ds.attrs.update(attrs or {})
     if MODERN:
+        import xarray as xr
+
         idata[name] = xr.DataTree(ds)
     else:
         idata.add_groups({name: ds})
@@ -72,9 +81,11 @@ def write(idata, path) -> Path:
 def read(path):
     """Read a posterior file written by ``write`` (under either arviz version) into memory."""
     if MODERN:
+        import xarray as xr
+
         with xr.open_datatree(str(path), engine=_engine()) as tree:
             return tree.load()
-    return az.from_netcdf(str(path), engine=_engine())
+    return _arviz().from_netcdf(str(path), engine=_engine())
 
 
 def posterior_draws(idata, names: Sequence[str], max_draws: int | None = None) -> dict[str, np.ndarray]:
@@ -95,12 +106,12 @@ def ess(x, method: str = "bulk") -> float:
     """Effective sample size of the draws ``x`` (chain, draw): ``bulk``, or ``tail`` (the
     smaller of the 5% and 95% quantiles' ESS: arviz 0.x's default, explicit for 1.x)."""
     prob = {"prob": (0.05, 0.95)} if method == "tail" else {}
-    return float(az.ess(np.asarray(x, dtype=float), method=method, **prob))
+    return float(_arviz().ess(np.asarray(x, dtype=float), method=method, **prob))
 
 
 def rhat(x) -> float:
     """Rank-normalised split r-hat of the draws ``x`` (chain, draw)."""
-    return float(az.rhat(np.asarray(x, dtype=float)))
+    return float(_arviz().rhat(np.asarray(x, dtype=float)))
 
 
 @dataclass
@@ -126,7 +137,7 @@ def loo(ll: np.ndarray) -> Loo:
     if not constant.all():
         data = from_dict({"posterior": {"_": np.zeros(ll.shape[:2])},
                           "log_likelihood": {"all": ll[..., ~constant]}})
-        r = az.loo(data, pointwise=True)
+        r = _arviz().loo(data, pointwise=True)
         pointwise[~constant] = np.asarray(r.elpd_i if MODERN else r["loo_i"], dtype=float).ravel()
         k[~constant] = np.asarray(r.pareto_k, dtype=float).ravel()
     k = np.where(np.isnan(k), np.inf, k)  # no tail could be fitted: 0.x says inf, 1.x NaN
