@@ -1,40 +1,22 @@
-"""The poster's experiment (differentiable LCP): choose the push of a cue ball so that the
-object ball it strikes is at a target at a given time; replayed in MuJoCo (an independent
+"""The poster's experiment (differentiable LCP), as examples/control_pool states it: choose
+the push of a cue ball so that the object ball it strikes is at a target at a given time; replayed in MuJoCo (an independent
 simulator: soft contacts, elastic ball-ball pair as in the dev corpus) the object ball ends
 within 2 cm of the target."""
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 import physdsl
 from physdsl.control import build, optimise
-from physdsl.goal import Goal, Reach
 
 mujoco = pytest.importorskip("mujoco")
 
 R = 0.028575
-TARGET = (0.9, -0.1, R)
 
-POOL = """
-scene pool {
-  world { timestep: 1 ms  duration: 1 s }
-  param r: 28.575 mm
-  param vx ~ normal(1.5 m/s, 0.5 m/s)
-  param vy ~ normal(0 m/s, 0.2 m/s)
-  ground table { normal: (0, 0, 1)  point: (0, 0, 0) m }
-  body cue {
-    shape: sphere(radius: r)
-    mass: 170 g
-    position: (0, 0, r)
-    velocity: (vx, vy, 0 m/s)
-    angular_velocity: (-vy / r, vx / r, 0 rad/s)
-  }
-  body object { shape: sphere(radius: r)  mass: 170 g  position: (0.5 m, 2 cm, r) }
-  contact table, cue { friction: 0.2 }
-  contact table, object { friction: 0.2 }
-}
-"""
+EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "control_pool" / "pool.phys"
 
 # The same table in MuJoCo, written as the dev corpus writes its billiards: stiff soft
 # contacts with the table (elliptic cone), an elastic frictionless ball-ball pair.
@@ -67,8 +49,9 @@ def replay_in_mujoco(vx: float, vy: float, until: float) -> np.ndarray:
 
 @pytest.mark.slow  # a second of contact rollouts, screened and refined: minutes on a CPU
 def test_the_push_found_through_the_collision_reaches_the_target_in_mujoco():
-    model = physdsl.compile(POOL)
-    plan = optimise(build(model, Goal((Reach("object", 1.0, TARGET, 0.005),), decisions=("vx", "vy"))))
+    model = physdsl.compile(EXAMPLE)  # the example: the object ball at (0.9, -0.1) m at 1 s
+    (reach,) = model.scene.goal.terms
+    plan = optimise(build(model, model.scene.goal))
     assert plan.met, plan.errors
-    end = replay_in_mujoco(float(plan.values["vx"]), float(plan.values["vy"]), 1.0)
-    assert np.linalg.norm(end[:2] - np.array(TARGET[:2])) < 0.02, end
+    end = replay_in_mujoco(float(plan.values["vx"]), float(plan.values["vy"]), reach.at)
+    assert np.linalg.norm(end[:2] - np.array(reach.point[:2])) < 0.02, end
