@@ -132,7 +132,7 @@ def control(model: Model, goal: Goal | None = None, idata=None, *, outdir: str |
     the scene's ``goal`` block) is met: L-BFGS through the rollout from screened prior draws;
     with a posterior ``idata``, the expected cost over up to ``draws`` of its draws. Files
     (controls CSV, planned.phys, predicted.csv, cost.png, plan.json) in ``outdir`` if given."""
-    goal = goal if goal is not None else getattr(model.scene, "goal", None)
+    goal = goal if goal is not None else model.scene.goal
     if goal is None:
         raise UsageError("the scene has no goal", hint="add a `goal { ... }` block (docs/control.md)")
     started = time.perf_counter()

@@ -96,21 +96,34 @@ def effort_residuals(scene: Scene, values, chosen: tuple[str, ...]):
     return jnp.concatenate([jnp.ravel(p) for p in parts])
 
 
-def term_errors(scene: Scene, simulator, goal: Goal, rollout, values) -> list:
-    """Each Reach/Hold term's error in its own unit (m, or rad/m for a joint); Effort: its integral."""
-    times = jnp.asarray(simulator.times)
+def _window(simulator, term: Hold) -> np.ndarray:
+    """The recorded steps inside a Hold term's window."""
+    return np.flatnonzero((simulator.times >= term.start - 1e-12)
+                          & (simulator.times <= term.end + 1e-12))
+
+
+def term_miss(scene: Scene, simulator, term: Reach | Hold, rollout):
+    """Predicted minus wanted, in the term's unit: (3,) for a Reach, one per step of the window
+    for a Hold."""
+    if isinstance(term, Reach):
+        track = track_of(scene, simulator.body_names, simulator.marker_names, term)
+        return (position_at(rollout, jnp.asarray(simulator.times), track, term.at)
+                - jnp.asarray(term.point))
+    j = list(simulator.joint_names).index(term.joint)
+    return rollout.joint_pos[_window(simulator, term), j] - term.value
+
+
+def term_errors(scene: Scene, simulator, goal: Goal, rollout, values, chosen: tuple[str, ...]
+                ) -> list:
+    """Each term's error in its own unit: a Reach's distance (m), a Hold's largest miss (rad or
+    m); an Effort term's integral of u² over the chosen control sequences."""
     out = []
     for term in goal.terms:
-        if isinstance(term, Reach):
-            track = track_of(scene, simulator.body_names, simulator.marker_names, term)
-            out.append(jnp.linalg.norm(position_at(rollout, times, track, term.at)
-                                       - jnp.asarray(term.point)))
-        elif isinstance(term, Hold):
-            j = list(simulator.joint_names).index(term.joint)
-            window = (simulator.times >= term.start - 1e-12) & (simulator.times <= term.end + 1e-12)
-            out.append(jnp.max(jnp.abs(rollout.joint_pos[np.flatnonzero(window), j] - term.value)))
+        if isinstance(term, Effort):
+            out.append(jnp.sum(effort_residuals(scene, values, chosen) ** 2))
         else:
-            out.append(jnp.sum(effort_residuals(scene, values, tuple(control_effects(scene))) ** 2))
+            miss = term_miss(scene, simulator, term, rollout)
+            out.append(jnp.linalg.norm(miss) if isinstance(term, Reach) else jnp.max(jnp.abs(miss)))
     return out
 
 
@@ -118,21 +131,14 @@ def goal_residuals(scene: Scene, simulator, goal: Goal, rollout, values, chosen:
     """The goal as a residual vector whose squared sum is the cost: (error / within) per axis of
     each Reach term, the same over each Hold window divided by the square root of its length
     (its mean), and sqrt(weight * dt_k) * u_k for Effort."""
-    times = jnp.asarray(simulator.times)
     parts = [jnp.zeros(0)]
     for term in goal.terms:
-        if isinstance(term, Reach):
-            track = track_of(scene, simulator.body_names, simulator.marker_names, term)
-            parts.append((position_at(rollout, times, track, term.at) - jnp.asarray(term.point))
-                         / term.within)
-        elif isinstance(term, Hold):
-            j = list(simulator.joint_names).index(term.joint)
-            window = np.flatnonzero((simulator.times >= term.start - 1e-12)
-                                    & (simulator.times <= term.end + 1e-12))
-            parts.append((rollout.joint_pos[window, j] - term.value)
-                         / (term.within * np.sqrt(len(window))))
-        elif isinstance(term, Effort):
+        if isinstance(term, Effort):
             parts.append(np.sqrt(term.weight) * effort_residuals(scene, values, chosen))
+            continue
+        miss = term_miss(scene, simulator, term, rollout)
+        scale = term.within if isinstance(term, Reach) else term.within * np.sqrt(miss.shape[0])
+        parts.append(miss / scale)
     return jnp.concatenate([jnp.ravel(p) for p in parts])
 
 

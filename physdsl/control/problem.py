@@ -142,4 +142,5 @@ def outcome(problem: ControlProblem, z) -> tuple[dict, object, list]:
     model = problem.model
     values = constrain(model, full_vector(problem, jnp.asarray(z), problem.rows[0]))
     rollout = model.simulator.simulate(values)
-    return values, rollout, term_errors(model.scene, model.simulator, problem.goal, rollout, values)
+    return values, rollout, term_errors(model.scene, model.simulator, problem.goal, rollout, values,
+                                        problem.chosen)

@@ -55,15 +55,20 @@ def optimise(problem: ControlProblem, steps: int = 200, on_step=None, screened: 
     batch = np.asarray(jax.jit(jax.vmap(cost_fn(problem)))(jnp.asarray(starts)))
     order = np.argsort(np.where(np.isfinite(batch), batch, np.inf))[:max(refined, 1)]
     residuals = residual_fn(problem)
-    curvature = jax.jit(lambda z: gauss_newton(
-        lambda x, _: (-0.5 * jnp.sum(residuals(x) ** 2), residuals(x)))(z, None))
-    value = jax.jit(lambda z: -0.5 * cost(z))
+
+    def with_residuals(x, _):  # one rollout gives the log density and the residuals
+        r = residuals(x)
+        return -0.5 * jnp.sum(r ** 2), r
+
+    curvature = jax.jit(lambda z: gauss_newton(with_residuals)(z, None))
+    value = lambda z: -0.5 * cost(z)  # noqa: E731 - the compiled cost, no second program
     best = None
     for s, i in enumerate(order):
         history: list[float] = []
         z = levenberg_marquardt(_recorded(curvature, history, s, on_step), starts[i], steps, value)
-        if best is None or float(cost(z)) < best[1]:
-            best = (z, float(cost(z)), history)
+        reached = float(cost(z))
+        if best is None or reached < best[1]:
+            best = (z, reached, history)
     z, final, history = best
     values, rollout, errors = outcome(problem, z)
     errors = [float(e) for e in errors]
