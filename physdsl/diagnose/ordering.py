@@ -106,8 +106,9 @@ def plausible_first(winner: Ranked, ranked: list[Ranked], physics: list[dict]):
     """(winner, ranked): where the evidence ties the winner with a rival and physics
     (``physical_scale.notes``) finds the winner's fitted strength implausible but the rival's
     plausible (linear drag at 10⁴ × Stokes against quadratic drag with C_d 0.3), the rival
-    wins; the tie stays recorded."""
-    judged = {(j["effect"], j["body"]): j["plausible"] for j in physics}
+    wins; the tie stays recorded. Judgements are keyed by their ``target`` (a body for drag, a
+    joint for joint laws, a pair for contact friction)."""
+    judged = {(j["effect"], j["target"]): j["plausible"] for j in physics}
     if judged.get((winner.effect, winner.target), True):
         return winner, ranked
     rival = next((r for r in ranked if r.tied_with == winner.key

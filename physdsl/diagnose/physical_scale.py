@@ -88,7 +88,7 @@ def judge_drag(scene, effect: str, body_name: str, fitted: float, speed: np.ndar
     """What physics says of a fitted drag strength on a body: the Reynolds range, the strength
     over its physical scale, and ``plausible`` (False: an implausible value)."""
     body = next(b for b in scene.bodies if b.name == body_name)
-    out = {"effect": effect, "body": body_name, "medium": scene.world.medium,
+    out = {"effect": effect, "body": body_name, "target": body_name, "medium": scene.world.medium,
            "speed": [float(np.min(speed)), float(np.max(speed))], "plausible": True}
     lo, hi = (reynolds(scene, body, float(v)) for v in out["speed"])
     out["reynolds"] = None if lo is None else [lo, hi]
@@ -178,7 +178,7 @@ def judge_joint(scene, effect: str, joint_name: str, fitted: float, values: Mapp
     """What physics says of a fitted joint damping or friction: the joint's load m g L, the
     damping ratio b / b_c or the friction coefficient T / (m g L), and ``plausible``."""
     load = joint_load(scene, joint_name, values)
-    out = {"effect": effect, "body": joint_name, "target": joint_name, "plausible": True,
+    out = {"effect": effect, "target": joint_name, "plausible": True,
            "load": None if load is None else load["load"]}
     if load is None:
         return out
@@ -195,13 +195,13 @@ def judge_joint(scene, effect: str, joint_name: str, fitted: float, values: Mapp
 
 def judge_contact_friction(pair: str, fitted: float) -> dict:
     """A fitted contact friction coefficient against the range of real surfaces."""
-    return {"effect": "contact_friction", "body": pair, "target": pair, "friction_coefficient": fitted,
+    return {"effect": "contact_friction", "target": pair, "friction_coefficient": fitted,
             "plausible": FRICTION_RANGE[0] <= fitted <= FRICTION_RANGE[1]}
 
 
 def text(j: dict) -> str:
     """One line of a ``judge_drag`` / ``judge_joint`` / ``judge_contact_friction`` result."""
-    parts = [f"{j['effect']} on {j['body']}"]
+    parts = [f"{j['effect']} on {j['target']}"]
     if "times_stokes" in j:
         parts.append(f"fitted {j['times_stokes']:.2g}× Stokes drag in {j['medium']}")
     if "cd" in j:

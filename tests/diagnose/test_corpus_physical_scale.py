@@ -10,7 +10,9 @@ import pytest
 
 from physdsl.diagnose import physical_scale as ps
 from physdsl.diagnose.candidates import Candidate
+from physdsl.diagnose.diagnosis import Ranked
 from physdsl.diagnose.edits import with_effect
+from physdsl.diagnose.ordering import plausible_first
 from physdsl.syntax import load
 
 EXAMPLES = Path(__file__).parents[2] / "examples"
@@ -86,3 +88,26 @@ def test_joint_law_candidates_get_priors_from_the_joint_load():
     group = Candidate("effect", "joint_damping", ("hinge1+hinge2+hinge3+hinge4",))
     sd = ps.DAMPING_RATIO_PRIOR_SD * 2 * 0.4 * 0.4 * math.sqrt(G * 0.4)
     assert ps.prior_text(chain, group) == f"~ half_normal({sd:.6g})"
+
+
+def _tied(effect, tied_with=None):
+    return Ranked(rank=1, kind="effect", effect=effect, target="hinge", statistic=100.0,
+                  p_value=0.0, dof=1, confirmed=True, tied_with=tied_with)
+
+
+def test_a_tie_of_joint_laws_goes_to_the_physically_plausible_one():
+    """Joint damping fitted at 11x critical (implausible) ties joint friction at a plausible
+    coefficient on the same hinge: the friction is named. The judgements are those of
+    ``judge_joint`` (keyed by their joint, the target; they name no body)."""
+    scene, values = _pendulum(), {"L": 0.5}
+    _, _, _, bc = _by_hand(0.5)
+    physics = [ps.judge_joint(scene, "joint_damping", "hinge", 11 * bc, values),
+               ps.judge_joint(scene, "joint_friction", "hinge", 0.06, values)]
+    damping, friction = _tied("joint_damping"), _tied("joint_friction", "joint_damping@hinge")
+    winner, ranked = plausible_first(damping, [damping, friction], physics)
+    assert winner is friction and ranked == [friction, damping]
+    assert damping.tied_with == "joint_friction@hinge" and friction.tied_with is None
+    # damping at a plausible ratio keeps its place
+    physics[0] = ps.judge_joint(scene, "joint_damping", "hinge", 0.035, values)
+    damping, friction = _tied("joint_damping"), _tied("joint_friction", "joint_damping@hinge")
+    assert plausible_first(damping, [damping, friction], physics)[0] is damping
