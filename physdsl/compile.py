@@ -109,8 +109,13 @@ def structure_key(scene: Scene) -> str:
     their tables, priors, noise models, image frames, the simulated duration) is hashed.
     """
     h = hashlib.sha256()
+    ex = scene.experiments
+    if ex is not None:  # recordings: their names and settings, their data's shapes
+        ex = dataclasses.replace(ex, source=Path(), span=None, recordings=tuple(
+            dataclasses.replace(r, folder=Path(), row=None, observations=tuple(
+                _structure_of(o) for o in r.observations)) for r in ex.recordings))
     _hash_walk(h, dataclasses.replace(
-        scene, path=None, source="",
+        scene, path=None, source="", experiments=ex,
         observations=tuple(_structure_of(o) for o in scene.observations)))
     h.update(repr(scene.duration).encode())
     return h.hexdigest()
@@ -165,9 +170,19 @@ class Compiled:
 _COMPILED: "weakref.WeakValueDictionary[str, Compiled]" = weakref.WeakValueDictionary()
 
 
+# other kinds of Model by name: "pooled", a scene with experiments (physdsl/pooled.py)
+MODEL_KINDS: dict = {}
+
+
 class Model:
     """A compiled scene: simulate, predict, the likelihood and the numpyro program (inference,
-    checks and diagnosis are functions over it: ``physdsl.api``)."""
+    checks and diagnosis are functions over it: ``physdsl.api``). A scene with
+    ``experiments`` makes a ``pooled.PooledModel`` (many recordings)."""
+
+    def __new__(cls, scene: Scene, until: float | None = None):
+        if cls is Model and getattr(scene, "experiments", None) is not None:
+            cls = MODEL_KINDS["pooled"]
+        return super().__new__(cls)
 
     def __init__(self, scene: Scene, until: float | None = None):
         self.scene = scene

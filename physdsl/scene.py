@@ -52,6 +52,7 @@ class Unknown:
     span: Span | None = None
     used_in: tuple[str, ...] = ()
     discrete: bool = False
+    per_experiment: bool = False  # one value per recording (``~ per_experiment dist(..)``)
 
 
 @dataclass(frozen=True)
@@ -280,6 +281,31 @@ class World:
 
 
 @dataclass(frozen=True)
+class Recording:
+    """One recording of an ``experiments`` scene: its name, folder, known settings (SI, by
+    the setting's dotted name ``throws.speed``) and its observations (read from its folder)."""
+
+    name: str
+    folder: Path
+    settings: Mapping[str, float]
+    observations: tuple[Observation, ...]
+    row: int | None = None  # its manifest row (1-based, header = 1), None for a glob
+
+
+@dataclass(frozen=True)
+class Experiments:
+    """``experiments NAME from "..."``: the recordings the scene's observations are read from
+    (``Scene.observations`` holds the first one's); ``settings``: the per-recording known
+    values' names, which stand as ``Ref`` nodes in the scene's expressions."""
+
+    name: str
+    source: Path
+    recordings: tuple[Recording, ...]
+    settings: tuple[str, ...] = ()
+    span: Span | None = None
+
+
+@dataclass(frozen=True)
 class Scene:
     """A checked scene: everything physics, rendering and inference need, in SI."""
 
@@ -298,6 +324,7 @@ class Scene:
     source: str = ""
     markers: tuple[Marker, ...] = ()
     goal: Goal | None = None  # the scene's ``goal { ... }`` (physdsl.control meets it)
+    experiments: Experiments | None = None  # many recordings (physdsl/pooled.py fits them)
 
     def body(self, name: str) -> Body:
         return next(b for b in self.bodies if b.name == name)

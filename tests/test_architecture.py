@@ -20,7 +20,7 @@ FLOORS = (
     ("api", "batch"),
     ("diagnose", "design", "export", "sample", "control"),
     ("infer", "track"),
-    ("compile", "mjcf"),
+    ("compile", "mjcf", "pooled"),
     ("syntax", "physics", "observe", "render"),
     ("scene", "goal"),
     ("errors", "expr", "io", "media", "cache", "registry", "version"),

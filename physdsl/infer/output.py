@@ -18,6 +18,7 @@ import numpyro
 from .. import io
 from ..compile import OBS_PREFIX, PRED_PREFIX
 from ..errors import UsageError
+from ..pooled import experiment_dims
 from ..version import __version__
 from .base import cached
 from .intervals import add_robust, shown_posterior
@@ -82,7 +83,7 @@ def posterior_pass(model, problem, flat: np.ndarray, on_chunk=None) -> tuple[dic
 
 
 def _dims(model, posterior):
-    dims, coords = {}, {}
+    dims, coords = experiment_dims(model)  # the ``experiment`` axis of per-recording unknowns
     for o in model.observed:
         tdim = f"{o.obs.name}:time"
         coords[tdim] = o.obs.times

@@ -114,6 +114,7 @@ class Dist:
     name: str
     args: tuple[Arg, ...]
     span: Span | None = None
+    per_experiment: bool = False  # ``~ per_experiment name(..)``: one draw per recording
 
 
 # ---- blocks --------------------------------------------------------------------------------
@@ -237,6 +238,15 @@ class ObserveItem:
 
 
 @dataclass(frozen=True)
+class ExperimentsItem:
+    """``experiments NAME from "glob/*/file.csv"`` or ``from "manifest.csv"``: many recordings."""
+
+    name: str
+    source: str
+    span: Span | None = None
+
+
+@dataclass(frozen=True)
 class MarkerItem:
     """``marker NAME on BODY { position: .. }``: a massless point fixed in a body's frame."""
 
@@ -310,7 +320,8 @@ class GoalItem:
 
 
 Item = Union[Param, WorldItem, BodyItem, JointItem, ContactItem, EffectItem, ControlItem,
-             CameraItem, LightItem, ObserveItem, MarkerItem, AliasItem, ForLoop, GoalItem]
+             CameraItem, LightItem, ObserveItem, MarkerItem, AliasItem, ForLoop, GoalItem,
+             ExperimentsItem]
 
 
 @dataclass(frozen=True)

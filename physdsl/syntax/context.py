@@ -74,6 +74,9 @@ class Resolver:
         self.joint_index: dict[str, Joint] = {}
         self.marker_index: dict[str, Marker] = {}
         self.pair_order: dict[frozenset, tuple[str, str]] = {}
+        # experiments (syntax/experiments.py): the first recording's folder, settings' names
+        self.observation_base: Path | None = None
+        self.setting_names: set[str] = set()
 
     def err(self, cls, msg, span, hint=None, source=None):
         """The error ``cls(msg, span, hint)`` with the text of the file ``span`` lies in."""
@@ -133,6 +136,8 @@ class Resolver:
             dim = spec_.dims[0] if spec_ else None
             shape = spec_.shape if spec_ and spec_.shape is not None else None
             return make_unknown(self, path, node, dim, shape, spec_)
+        if isinstance(node, R):  # a known per-recording setting (syntax/experiments.py)
+            return node
         if isinstance(node, E.Const):  # a default already in SI
             return R(node, spec_.dims[0] if spec_ else None, np.shape(node.value))
         r = self.expr(node)
@@ -236,10 +241,13 @@ class Resolver:
                                     if hasattr(f.value, "span") else f.span))
         return default
 
-    def data_file(self, name: str, span: Span | None, what: str = "data file") -> Path:
-        """``name`` relative to the scene's folder, refused when it lies outside the bounds."""
-        self.bounds.check(self.base / name, what, name, span, self._text_for(span))
-        return self.base / name
+    def data_file(self, name: str, span: Span | None, what: str = "data file",
+                  base: Path | None = None) -> Path:
+        """``name`` relative to the scene's folder (or ``base``), refused when it lies outside
+        the bounds."""
+        base = self.base if base is None else base
+        self.bounds.check(base / name, what, name, span, self._text_for(span))
+        return base / name
 
     def raise_errors(self):
         """Raise the errors collected so far (one, or all as PhysErrors)."""

@@ -42,7 +42,7 @@ def observe(res, item: ast.ObserveItem) -> Observation:
                       "e.g. { noise: 2 mm }  or  { noise ~ half_normal(5 mm) }")
     dim = max(len(cols), 1)
     noise = _noise(res, name, fs, qdim, dim)
-    file = res.data_file(item.file, item.span)
+    file = res.data_file(item.file, item.span, base=res.observation_base)
     if q == "image":
         return _images(res, item, name, fs, file, noise)
     if item.rate is not None or item.times is not None:

@@ -155,7 +155,11 @@ class _ToAst(Transformer):
         return ast.MaterialBlock(ch[0], self._s(meta))
 
     def dist(self, meta, ch):
-        return ast.Dist(str(ch[0]), tuple(a for a in ch[1:] if a is not None), self._s(meta))
+        return ast.Dist(str(ch[1]), tuple(a for a in ch[2:] if a is not None), self._s(meta),
+                        ch[0] is not None)
+
+    def experiments(self, meta, ch):
+        return ast.ExperimentsItem(str(ch[0]), unquote(ch[1]), self._s(meta))
 
     # library declarations
     def effect_type(self, meta, ch):

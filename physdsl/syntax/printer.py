@@ -77,7 +77,8 @@ def format_expr(node) -> str:
         lv = _level(node)
         return f"{_wrap(node.left, lv)} {node.op} {_wrap(node.right, lv + 1)}"
     if isinstance(node, ast.Dist):
-        return f"{node.name}({_args(node.args)})"
+        per = "per_experiment " if node.per_experiment else ""
+        return f"{per}{node.name}({_args(node.args)})"
     raise TypeError(f"not an expression: {node!r}")
 
 
@@ -272,6 +273,8 @@ class _Printer:
             self.block_item(f"marker {it.name} on {it.body}", it.block, it, indent)
         elif isinstance(it, ast.AliasItem):
             self.leaf(f"alias {it.name} = {it.target}", it, indent)
+        elif isinstance(it, ast.ExperimentsItem):
+            self.leaf(f"experiments {it.name} from {_q(it.source)}", it, indent)
         elif isinstance(it, ast.ForLoop):
             self.loop(it, indent)
         elif isinstance(it, ast.GoalItem):

@@ -135,6 +135,7 @@ def make_unknown(res, path: str, node: ast.Dist, dim: Dim | None, shape, spec_) 
         raise res.err(PhysTypeError, f"'{path.rsplit('.', 1)[-1]}' must be a known value, "
                       "not an unknown", node.span)
     unit = target.si_text() if target is not None else "1"
-    res.unknowns[path] = Unknown(path, pr, tuple(dshape), unit, node.span, (), discrete)
+    res.unknowns[path] = Unknown(path, pr, tuple(dshape), unit, node.span, (), discrete,
+                                 node.per_experiment)
     res.supports[path] = support
     return R(E.Ref(path), target, tuple(dshape))

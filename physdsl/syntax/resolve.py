@@ -12,7 +12,7 @@ from pathlib import Path
 from .. import expr as E
 from ..errors import PhysError, PhysNameError, PhysStructureError, Span
 from ..scene import Scene, Unknown
-from . import ast
+from . import ast, experiments
 from .bodies import build_body, declare_body
 from .bounds import Bounds
 from .context import Resolver
@@ -62,10 +62,13 @@ def run(res: Resolver) -> Scene:
     for name, (p, text) in res.lib.params.items():
         res.register(name, p.value, None)
     scene = expand(scene, res.errors)  # loops unrolled, aliases applied (syntax/loops.py)
+    many = experiments.find_item(res, scene)  # recordings read, settings named
+    recordings = experiments.declare(res, many) if many is not None else []
     declare(res, scene)
     built = build(res, scene)
+    experiments.check_unknowns(res, scene, many is not None)
     res.raise_errors()
-    return built
+    return experiments.attach(res, many, scene, recordings, built) if recordings else built
 
 
 def declare(res: Resolver, scene: ast.SceneDecl):
@@ -145,5 +148,5 @@ def used_in(res: Resolver) -> list[Unknown]:
         used = tuple(p for p in res.resolved_order
                      if name in E.references(res.memo[p].expr) and p != name)
         unknowns.append(Unknown(u.name, u.prior, u.shape, u.unit, u.span, used or (name,),
-                                u.discrete))
+                                u.discrete, u.per_experiment))
     return unknowns
