@@ -29,7 +29,7 @@ With ``--mode refine`` (or ``both``, the default) the case's naive scene also go
 - ``final_rms_sigma.CASE``: the final round's residual RMS in noise units,
 - ``rounds.CASE``: the rounds refine fitted (round 0 is the naive scene), with each round's
   action and RMS in ``actions.CASE``,
-- ``wall_s.CASE``: refine's wall time; ``refit.CASE``: each hidden strength in the final fit
+- ``wall_s.CASE``: refine's wall time, ``cpu_s.CASE`` its CPU time; ``refit.CASE``: each hidden strength in the final fit
   (mean and 90% interval) against the truth,
 - ``named_right.CASE``: 1 when every hidden law is on its target and no other law is on any
   hidden target (the right law, not only the right place: ``hinge_viscous`` / ``hinge_coulomb``,
@@ -194,7 +194,7 @@ def run_refine(name: str, seed: int, folder: Path | None = None) -> dict:
     folder = CASES / name if folder is None else folder
     naive = {(e.effect, tuple(e.target)) for e in load(folder / "naive.phys").effects}
     truth = json.loads((folder / "truth.json").read_text())
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     with tempfile.TemporaryDirectory() as tmp:
         rounds = refine(folder / "naive.phys", Path(tmp) / "refine", seed=seed,
                         echo=lambda line: print(f"[{name}] {line}", file=sys.stderr, flush=True))
@@ -216,11 +216,64 @@ def run_refine(name: str, seed: int, folder: Path | None = None) -> dict:
         "named_right": int(_named_right(effects, _hidden(truth))),
         "effects_added": sorted(f"{e}@{','.join(t)}" for e, t in effects - naive),
         "final_rms_sigma": last.rms_sigma, "rounds": len(rounds), "wall_s": wall,
+        "cpu_s": time.process_time() - c0,
         "actions": [{"action": r.action, "added": r.added, "replaced": r.replaced,
                      "rms_sigma": r.rms_sigma} for r in rounds],
         "final_effects": sorted(f"{e}@{','.join(t)}" for e, t in effects if e != "gravity"),
         "refit": refit, "final_verdict": last.verdict,
     }
+
+
+def run_check(name: str, seed: int) -> dict:
+    """Fit one no-effect case as ``refine``'s round 0 does (MAP, its defaults) and run the check:
+    whether it calls the residuals consistent with the noise, each axis's test p-values, and
+    the standardised residuals themselves (to measure other statistics without refitting)."""
+    import numpy as np
+
+    import physdsl  # noqa: F401 - float64
+    from physdsl.compile import Model
+    from physdsl.diagnose.quality import fit_quality
+    from physdsl.diagnose.residuals import residuals
+    from physdsl.diagnose.check import check
+    from physdsl.diagnose.workflow import observable_fits
+    from physdsl.infer.fit import fit_with_fallback, start_setting
+    from physdsl.syntax import load
+
+    t0, c0 = time.perf_counter(), time.process_time()
+    model = Model(load(NO_EFFECT / name / "naive.phys"))
+    idata = fit_with_fallback(model, "map", chains=2, warmup=300, samples=300, seed=seed,
+                              progress=False, start=start_setting({}), quality=fit_quality)
+    fits = observable_fits(model, idata)
+    report = check(fits)
+    axes = {}
+    for fit, obs in zip(fits, report.observables):
+        r = residuals(fit).r
+        for j, ax in enumerate(obs.axes):
+            axes[f"{obs.name}.{ax.axis}"] = {
+                "p": {k: float(v) for k, v in ax.p_values.items()}, "consistent": bool(ax.consistent),
+                "r": [None if not np.isfinite(x) else round(float(x), 5) for x in r[:, j]]}
+    return {"consistent": bool(report.consistent), "rms_sigma": float(report.rms_sigma),
+            "axes": axes, "wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0}
+
+
+def _check_summary(results: list[dict]) -> str:
+    """Per case: the check's verdict at the fitted true model and its smallest p-value (test and
+    axis); then ``check_false_alarm_rate: x/N``."""
+    lines = []
+    ran = [r for r in results if "axes" in r]
+    for r in results:
+        n = r["case"]
+        if "axes" not in r:
+            lines.append(f"error.{n}: {r.get('error')}")
+            continue
+        test, axis, p = min(((t, a, v) for a, ax in r["axes"].items() for t, v in ax["p"].items()),
+                            key=lambda x: x[2])
+        lines.append(f"check_consistent.{n}: {int(r['consistent'])} (RMS {r['rms_sigma']:.3f}σ, "
+                     f"smallest p {p:.2g}: {test} on {axis}; {len(r['axes'])} axes; "
+                     f"{r['wall_s']:.0f} s wall, {r['cpu_s']:.0f} s CPU)")
+    alarms = sum(not r["consistent"] for r in ran)
+    lines.append(f"check_false_alarm_rate: {alarms}/{len(ran)}")
+    return "\n".join(lines)
 
 
 def _fmt(v, spec="") -> str:
@@ -236,9 +289,12 @@ def main() -> None:
     ap.add_argument("--confirm", type=int, default=2, help="physical candidates to refit")
     ap.add_argument("--timeout", type=float, default=2400.0, help="seconds per case")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--mode", choices=("diagnose", "refine", "both", "false-positives"), default="both",
+    ap.add_argument("--mode", choices=("diagnose", "refine", "both", "false-positives", "check"),
+                    default="both",
                     help="one diagnosis round, the refine loop, or both (hidden-effect cases); "
-                         "false-positives: the refine loop on the no-effect cases (examples/no-effect)")
+                         "false-positives: the refine loop on the no-effect cases (examples/no-effect); "
+                         "check: the check's verdict at the fitted true model of the no-effect cases")
+    ap.add_argument("--json", type=Path, help="also write every case's result to this JSON file")
     ap.add_argument("--one", default="", help=argparse.SUPPRESS)  # worker mode
     args = ap.parse_args()
     if args.one:
@@ -247,13 +303,17 @@ def main() -> None:
             res.update(run_refine(args.one, args.seed, NO_EFFECT / args.one))
             print("RESULT " + json.dumps(res), flush=True)
             return
+        if args.mode == "check":
+            res.update(run_check(args.one, args.seed))
+            print("RESULT " + json.dumps(res), flush=True)
+            return
         if args.mode != "refine":
             res.update(run_case(args.one, args.confirm, args.seed))
         if args.mode != "diagnose":
             res.update(run_refine(args.one, args.seed))
         print("RESULT " + json.dumps(res), flush=True)
         return
-    where = NO_EFFECT if args.mode == "false-positives" else CASES
+    where = NO_EFFECT if args.mode in ("false-positives", "check") else CASES
     known = sorted(p.name for p in where.iterdir() if (p / "truth.json").exists())
     unknown = [n for n in args.case if n not in known]
     if unknown:
@@ -268,8 +328,14 @@ def main() -> None:
         res.setdefault("seconds", time.perf_counter() - t0)
         res["load"] = " ".join(f"{x:.1f}" for x in os.getloadavg())
         results.append(res)
-        _print_lines(res)
+        if args.json:
+            args.json.write_text(json.dumps(results))
+        if args.mode != "check":
+            _print_lines(res)
     print()
+    if args.mode == "check":
+        print(_check_summary(results))
+        return
     if args.mode == "false-positives":
         print(_false_positive_summary(results))
         return
@@ -338,6 +404,7 @@ def _print_refine(r: dict) -> None:
     print(f"rounds.{n}: {r['rounds']}")
     print(f"actions.{n}: {_actions(r)}")
     print(f"wall_s.{n}: {r['wall_s']:.0f}")
+    print(f"cpu_s.{n}: {_fmt(r.get('cpu_s'), '.0f')}")
     for key, f in r["refit"].items():
         got = ("not in the final scene" if f["mean"] is None else
                ", ".join(f"{m:.4g} [{a:.4g}, {b:.4g}]" for m, a, b in zip(f["mean"], f["q5"], f["q95"])))
@@ -357,17 +424,17 @@ def _actions(r: dict) -> str:
 
 def _refine_table(results: list[dict]) -> str:
     lines = ["| case | rounds | actions and RMS per round | named all | refitted (mean, 90%) vs truth "
-             "| wall (s) | load |", "|---|---|---|---|---|---|---|"]
+             "| wall (s) | CPU (s) | load |", "|---|---|---|---|---|---|---|---|"]
     for r in results:
         if "named_all" not in r:
-            lines.append(f"| {r['case']} | | {r.get('error', '')} | | | {r['seconds']:.0f} | {r['load']} |")
+            lines.append(f"| {r['case']} | | {r.get('error', '')} | | | {r['seconds']:.0f} | | {r['load']} |")
             continue
         refit = "; ".join(
             f"{k}: " + ("—" if f["mean"] is None else ", ".join(f"{m:.3g} [{a:.3g}, {b:.3g}]" for m, a, b
                                                                in zip(f["mean"], f["q5"], f["q95"])))
             + f" vs {f['truth']}" for k, f in r["refit"].items())
         lines.append(f"| {r['case']} | {r['rounds']} | {_actions(r)} | {r['named_all']} | {refit} | "
-                     f"{r['wall_s']:.0f} | {r['load']} |")
+                     f"{r['wall_s']:.0f} | {_fmt(r.get('cpu_s'), '.0f')} | {r['load']} |")
     return "\n".join(lines)
 
 

@@ -23,7 +23,8 @@ from .windows import (MisfitSpan, Window, choose_windows, rms, smoothing_width,
 __all__ = ["ObservableFit", "Finding", "AxisResult", "ObservableResult", "Report", "check",
            "write_report"]
 
-ALPHA = 0.01           # per-axis false-alarm budget, shared by the five tests below
+ALPHA = 0.01           # false-alarm budget of a whole check: shared by every axis and its 5 tests
+TESTS = 5              # chi2, runs, lag-1, windows, spans
 MIN_SHAPE_R = 0.5      # below this |r| no single shape is named ("systematic, unclassified")
 
 
@@ -78,6 +79,7 @@ class AxisResult:
     after: AfterEvent | None
     p_values: dict[str, float]  # the tests deciding consistency (already multiplicity-adjusted)
     consistent: bool            # residuals consistent with noise: no flag raised
+    level: float = ALPHA / TESTS  # each test's threshold: ALPHA shared by the check's axes and tests
 
 
 @dataclass(frozen=True)
@@ -172,12 +174,16 @@ def check(fits: Sequence[ObservableFit], *, windows: int = 4) -> Report:
     results: list[ObservableResult] = []
     flags: list[Finding] = []
     all_r: list[np.ndarray] = []
+    # Bonferroni over every axis of every observable and the five tests of each: the check as a
+    # whole raises a false alarm on pure noise with probability <= ALPHA (per axis, a pendulum's
+    # four axes had given about 5% per scene)
+    level = ALPHA / TESTS / max(1, sum(len(f.axes) for f in fits))
     for fit in fits:
         res = residuals(fit)
         wins = choose_windows(res.times, res.events, windows)
         axes = []
         for j, axis in enumerate(res.axes):
-            ax = check_axis(res, j, wins)
+            ax = check_axis(res, j, wins, level)
             axes.append(ax)
             finding = explain(res, j, ax)
             if finding is not None:
@@ -204,18 +210,27 @@ def window_rms(times: np.ndarray, r: np.ndarray, wins: list[Window]) -> list[Win
     return out
 
 
-def check_axis(res: Residuals, j: int, wins: list[Window]) -> AxisResult:
-    """Run the consistency tests and shape fits on axis ``j`` of one observable."""
-    t, r = res.times, res.r[:, j]
-    ok = res.valid[:, j]
+def axis_tests(t: np.ndarray, r: np.ndarray, wins: list[Window], level: float = ALPHA / TESTS):
+    """The five consistency tests of one axis's standardised residuals ``r`` at times ``t``:
+    (randomness tests, window RMS, systematic spans at ``level``, p-value per test). The axis
+    is consistent with the noise when every p is at least ``level``."""
     tests = randomness(r)
     wr = window_rms(t, r, wins)
     wp = [w.p_value for w in wr if w.n >= 3]
     window_p = min(1.0, min(wp) * len(wp)) if wp else 1.0
-    spans = systematic_spans(t, r, alpha=ALPHA / 5)
+    spans = systematic_spans(t, r, alpha=level)
     p_values = {"chi2": tests.chi2_p, "runs": tests.runs_p, "lag1": tests.lag1_p,
                 "windows": window_p, "spans": 0.0 if spans else 1.0}
-    consistent = tests.n < 5 or min(p_values.values()) >= ALPHA / 5
+    return tests, wr, spans, p_values
+
+
+def check_axis(res: Residuals, j: int, wins: list[Window], level: float = ALPHA / TESTS) -> AxisResult:
+    """Run the consistency tests (each at ``level``) and shape fits on axis ``j`` of one
+    observable."""
+    t, r = res.times, res.r[:, j]
+    ok = res.valid[:, j]
+    tests, wr, spans, p_values = axis_tests(t, r, wins, level)
+    consistent = tests.n < 5 or min(p_values.values()) >= level
     inside = (res.measured[:, j] >= res.band_lo[:, j]) & (res.measured[:, j] <= res.band_hi[:, j])
     coverage = float(np.mean(inside[ok])) if ok.any() else float("nan")
     scores = shape_scores(t, res.error[:, j], res.noise[:, j], res.center[:, j],
@@ -225,7 +240,7 @@ def check_axis(res: Residuals, j: int, wins: list[Window]) -> AxisResult:
                         alpha=ALPHA) if not consistent else None
     return AxisResult(res.name, res.axes[j], res.unit, tests.n, tests.rms_sigma, tests.mean_sigma,
                       coverage, res.band_level, tests, wr, spans, scores, env, after, p_values,
-                      consistent)
+                      consistent, level)
 
 
 def explain(res: Residuals, j: int, ax: AxisResult) -> Finding | None:
@@ -251,7 +266,7 @@ def explain(res: Residuals, j: int, ax: AxisResult) -> Finding | None:
         a, b = worst.t_start, worst.t_end
     else:
         a, b = tv[0], tv[-1]
-    systematic = min(ax.p_values["runs"], ax.p_values["lag1"], ax.p_values["spans"]) < ALPHA / 5
+    systematic = min(ax.p_values["runs"], ax.p_values["lag1"], ax.p_values["spans"]) < ax.level
     if ax.after is not None:
         e = ax.after
         a, b = e.event, tv[-1]
