@@ -18,7 +18,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "physdsl"
 FLOORS = (
     ("cli",),
     ("api", "batch"),
-    ("diagnose", "design", "export", "sample", "control"),
+    ("diagnose", "design", "export", "sample", "control", "discover"),
     ("infer", "track"),
     ("compile", "mjcf", "pooled"),
     ("syntax", "physics", "observe", "render"),

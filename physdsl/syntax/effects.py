@@ -12,6 +12,7 @@ from .context import AnyKey
 from .contact_sugar import CONTACT_SUGAR, SUGAR_PARAM
 from .data import read_control
 from .expressions import R
+from .learned import param_shapes
 from .priors import prior
 from .schema import EFFECT_TARGETS, Spec
 from .units import FORCE, TIME, TORQUE, parse_unit
@@ -84,6 +85,7 @@ def effect_use(res, name: str, target: tuple[str, ...], fields: dict, span) -> E
         target = res.pair_order.get(frozenset(target), target)
     key = f"{name}@{','.join(target)}"
     params: dict[str, E.Expr] = {}
+    shapes = param_shapes(res, decl, fields, span)  # a learned effect's weights
     names = [p.name for p in decl.params]
     for k, f in fields.items():
         if k not in names:
@@ -96,7 +98,8 @@ def effect_use(res, name: str, target: tuple[str, ...], fields: dict, span) -> E
         if kind == "joint" and len(dims) > 1:
             jk = res.joint_index[target[0]].kind
             dims = (dims[1],) + dims[:1] if jk == "slider" else dims
-        sp = Spec(dims, p.shape)
+        shape = shapes.get(p.name, p.shape)
+        sp = Spec(dims, shape)
         if p.name in fields:
             f = fields[p.name]
             res.register(path, f.value, sp)
@@ -106,9 +109,9 @@ def effect_use(res, name: str, target: tuple[str, ...], fields: dict, span) -> E
         elif p.default is not None:
             params[p.name] = p.default
         elif p.prior is not None:
-            res.unknowns[path] = Unknown(path, p.prior, p.shape, dims[0].si_text(), span, (), False)
+            res.unknowns[path] = Unknown(path, p.prior, shape, dims[0].si_text(), span, (), False)
             res.supports[path] = "positive" if p.sign else "real"
-            res.memo[path] = R(E.Ref(path), dims[0], p.shape)
+            res.memo[path] = R(E.Ref(path), dims[0], shape)
             res.resolved_order.append(path)
             params[p.name] = E.Ref(path)
         else:
