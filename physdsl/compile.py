@@ -226,6 +226,15 @@ class Model:
         """Rollout of the scene for the unknowns' ``values`` (name -> array)."""
         return self.simulator.simulate(values)
 
+    def rollout_of(self, rollout, obs_name: str):
+        """The part of ``simulate``'s rollout that observation ``obs_name`` is read from (a
+        pooled Model's rollout holds every recording's)."""
+        return rollout
+
+    def recording_rollouts(self, rollout) -> list:
+        """``simulate``'s rollout as one rollout per recording (one here)."""
+        return [rollout]
+
     def predict(self, values, rollout=None, data=None):
         """Noise-free predictions of every trajectory observation: name -> (N, D)."""
         if rollout is None:

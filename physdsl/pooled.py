@@ -90,9 +90,19 @@ class PooledModel(Model):
 
         return chunked_map(one, stacked, self.n, min(CHUNK, self.n))
 
-    def _rollout_of(self, rollout, r: int, values):
-        return jax.tree_util.tree_map(lambda a: a[r], rollout) if self.stacked(values) \
-            else rollout
+    @property
+    def varies(self) -> bool:
+        """Whether recordings differ in anything the rollout reads (else one rollout)."""
+        return bool(self.per_experiment or self.settings)
+
+    def _one(self, rollout, r: int):
+        return jax.tree_util.tree_map(lambda a: a[r], rollout) if self.varies else rollout
+
+    def rollout_of(self, rollout, obs_name: str):
+        return self._one(rollout, self.recording_of[obs_name])
+
+    def recording_rollouts(self, rollout) -> list:
+        return [self._one(rollout, r) for r in range(self.n)]
 
     def simulate(self, values):
         """Every recording's rollout (see ``rollouts``) for the unknowns' ``values``."""
@@ -105,7 +115,7 @@ class PooledModel(Model):
         out = {}
         for o in self.observed:
             r = self.recording_of[o.obs.name]
-            out[o.obs.name] = sensor.predict(self._rollout_of(rollout, r, values),
+            out[o.obs.name] = sensor.predict(self._one(rollout, r),
                                              self.simulator, o.obs, _interp(data[o.obs.name]),
                                              self.recording_values(values, r))
         return out

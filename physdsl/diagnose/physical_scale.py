@@ -78,10 +78,11 @@ def reynolds(scene, body, speed: float) -> float | None:
 
 
 def speeds(model, idata, body: str) -> np.ndarray:
-    """The body's speeds over the recording at the fit (the most likely draw)."""
-    roll = model.simulate(point_estimate(model, idata))
-    v = np.asarray(roll.body_vel)[:, model.simulator.body_names.index(body)]
-    return np.linalg.norm(v, axis=-1)
+    """The body's speeds over the recording (every recording's, for a pooled Model) at the
+    fit (the most likely draw)."""
+    rolls = model.recording_rollouts(model.simulate(point_estimate(model, idata)))
+    i = model.simulator.body_names.index(body)
+    return np.concatenate([np.linalg.norm(np.asarray(r.body_vel)[:, i], axis=-1) for r in rolls])
 
 
 def judge_drag(scene, effect: str, body_name: str, fitted: float, speed: np.ndarray) -> dict:

@@ -82,12 +82,12 @@ def observable_fits(model, idata, max_draws: int = MAX_DRAWS) -> list[Observable
     values = point_estimate(model, idata)
     rollout = model.simulate(values)
     central = {k: np.asarray(v) for k, v in model.predict(values, rollout).items()}
-    evs = events(model, rollout)
     pp = idata.posterior_predictive
     fits = []
     n = len(next(iter(draws.values()))) if draws else 1
     for o in model.observed:
         obs = o.obs
+        roll = model.rollout_of(rollout, obs.name)  # its recording's (pooled Models)
         pred = np.asarray(pp[PRED_PREFIX + obs.name].values)
         pred = pred.reshape(-1, *pred.shape[2:])
         step = max(1, pred.shape[0] // max_draws)
@@ -104,17 +104,18 @@ def observable_fits(model, idata, max_draws: int = MAX_DRAWS) -> list[Observable
             point = np.asarray(trajectory.rotation_vector(jnp.asarray(point)))
         speed = None
         if obs.quantity == "position":  # the speed of the observed body or marker
-            vel = np.asarray(trajectory.model_track(rollout, model.simulator,
+            vel = np.asarray(trajectory.model_track(roll, model.simulator,
                                                     dataclasses.replace(obs, quantity="velocity")))
             speed_track = np.linalg.norm(vel, axis=1)
-            speed = np.interp(obs.times, np.asarray(rollout.t), speed_track)
+            speed = np.interp(obs.times, np.asarray(roll.t), speed_track)
         elif obs.quantity == "angle":
-            rate = np.asarray(rollout.joint_vel[:, model.simulator.joint_names.index(obs.target)])
-            speed = np.interp(obs.times, np.asarray(rollout.t), np.abs(rate))
+            rate = np.asarray(roll.joint_vel[:, model.simulator.joint_names.index(obs.target)])
+            speed = np.interp(obs.times, np.asarray(roll.t), np.abs(rate))
         fits.append(ObservableFit(
             name=obs.name, axes=trajectory.axes(obs.quantity), unit=_unit(obs.quantity),
             times=obs.times, measured=np.where(mask, measured, np.nan), mask=mask,
-            predicted=pred[: len(sig)], noise_sigma=sig, speed=speed, events=evs, point=point))
+            predicted=pred[: len(sig)], noise_sigma=sig, speed=speed, events=events(model, roll),
+            point=point))
     return fits
 
 

@@ -12,7 +12,7 @@ Every other unknown keeps the value of the start it is given (a prior draw).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import jax
 import jax.numpy as jnp
@@ -50,13 +50,15 @@ class Estimate:
     slope: np.ndarray | None  # (D,) per second
     slope_sd: np.ndarray | None
     samples: int
+    recording: int | None = None  # its recording's index in a pooled Model (physdsl/pooled.py)
 
 
-def track_estimates(scene) -> list[Estimate]:
-    """Value and slope at t = 0 of every observed trajectory that starts near t = 0."""
+def track_estimates(scene, observations=None) -> list[Estimate]:
+    """Value and slope at t = 0 of every observed trajectory that starts near t = 0 (of
+    ``observations``, default the scene's)."""
     out = []
     markers = {m.name for m in scene.markers}  # points on bodies, not body states
-    for o in scene.observations:
+    for o in scene.observations if observations is None else observations:
         if o.quantity not in SOURCES or not len(o.times) or o.times[0] > WINDOW_S / 2 \
                 or o.target in markers:
             continue
@@ -122,7 +124,7 @@ def data_start(problem, x0, others=()) -> np.ndarray | None:
     model = problem.model
     scene = model.scene
     names = initial_state_unknowns(scene)
-    estimates = track_estimates(scene)
+    estimates = model_estimates(model)
     if not names or not estimates:
         return None
     fn, mask = _objective(problem, tuple(sorted(names)), estimates)
@@ -144,6 +146,14 @@ def data_start(problem, x0, others=()) -> np.ndarray | None:
     if best is None:
         return None
     return np.where(mask, _fill(mask, best[1]), x0)
+
+
+def model_estimates(model) -> list[Estimate]:
+    """The track estimates of ``model``'s data: of each recording, for a pooled Model."""
+    if getattr(model, "recordings", None) is None:
+        return track_estimates(model.scene)
+    return [replace(e, recording=r) for r, rec in enumerate(model.recordings)
+            for e in track_estimates(model.scene, rec.observations)]
 
 
 def _fill(mask, z):
@@ -171,10 +181,14 @@ def _objective(problem, names: tuple[str, ...], estimates: list[Estimate]):
     def misfit(x, numbers):
         u = unravel(x)
         values = constrain_fn(model.prior_values, (), {}, u)
-        prm = sim.params(values)
-        state = observe(sim.model, prm, prm["q0"], prm["v0"])
+        states = {}  # the state at t = 0 of each recording (one: None)
         total = potential_energy(model.prior_values, (), {}, u)
         for e, (value, value_sd, slope, slope_sd) in zip(estimates, numbers):
+            if e.recording not in states:
+                prm = sim.params(values if e.recording is None
+                                 else model.recording_values(values, e.recording))
+                states[e.recording] = observe(sim.model, prm, prm["q0"], prm["v0"])
+            state = states[e.recording]
             i_val, i_slope = SOURCES[e.quantity]
             idx = (sim.body_names if i_val < 4 else sim.joint_names).index(e.target)
             pred = state[i_val][idx].reshape(-1)
