@@ -23,7 +23,11 @@ from .control import mpc as _mpc
 from .control import mpc_files
 from .control.output import write_plan
 from .control.plant_spec import load_plant
-from .design.experiment import OBJECTIVES, Proposal, design, require_unknown
+from .design.excite import InfoDesign, search as _information_search
+from .design.experiment import OBJECTIVES, Proposal, design
+from .design.info_files import write as _write_information
+from .design.information import belief as _belief
+from .design.vary import require_unknown, varied as _varied
 from .diagnose.candidates import Candidate
 from .diagnose.edits import load_text, with_effect
 from .diagnose.diagnosis import Diagnosis
@@ -32,6 +36,7 @@ from .diagnose.rank import diagnose as _diagnose
 from .diagnose.refine import Round
 from .diagnose.refine import refine as _refine
 from .diagnose.workflow import check_model, point_estimate
+from .discover.beyond import beyond_library as _beyond_library
 from .errors import PhysNameError, UsageError
 from .goal import Goal
 from .export import export as _export
@@ -49,7 +54,7 @@ from .track import Tracked, track_source
 __all__ = [
     "load", "compile", "infer", "check", "diagnose", "refine", "add_effect", "design_experiment",
     "render", "render_draws", "track", "export", "export_mjcf", "sample", "read_run",
-    "import_model", "format_source", "control", "mpc",
+    "import_model", "format_source", "control", "mpc", "beyond_library",
 ]
 
 format_source = syntax.format_source
@@ -106,10 +111,22 @@ def _scene_path(scene) -> Path:
     return Path(scene)
 
 
-def refine(scene: Scene | str | Path, outdir: str | Path, **options) -> list[Round]:
+def refine(scene: Scene | str | Path, outdir: str | Path, *, allow_learned: bool = False,
+           learned: bool = True, **options) -> list[Round]:
     """The loop fit, check, diagnose, add the effect, refit until nothing improves the evidence;
-    each round's files in ``outdir`` (see ``physdsl.diagnose.refine.refine`` for the options)."""
-    return _refine(_scene_path(scene), outdir, **options)
+    each round's files in ``outdir`` (see ``physdsl.diagnose.refine.refine`` for the options).
+    Where nothing in the library explains the misfit it learns a force and distils a law
+    (``learned=False``: it does not); the law enters the next round only with
+    ``allow_learned=True``, always labelled as outside the library."""
+    return _refine(_scene_path(scene), outdir, beyond=_beyond_library if learned else None,
+                   allow_learned=allow_learned, **options)
+
+
+def beyond_library(model: Model, idata, outdir: str | Path, **options):
+    """Learn a residual force where the check points (or on ``target``), distil it into a law,
+    refit the law; a ``physdsl.discover.Beyond`` (see ``physdsl.discover.beyond``)."""
+    report = options.pop("report", None)
+    return _beyond_library(model, idata, report, outdir, **options)
 
 
 def add_effect(scene: Scene, effect: str, target: str | Sequence[str]) -> Scene:
@@ -171,12 +188,34 @@ def _fitted_values(model: Model, idata=None) -> dict:
     return point_estimate(model, idata)
 
 
-def design_experiment(model_a: Model, model_b: Model, vary: Sequence[str], *, idata_a=None,
-                      idata_b=None, rng: tuple[float, float] | None = None,
-                      objective: str = "max_sigma", labels=("A", "B")) -> list[Proposal]:
-    """For each field of ``vary`` (an unknown of both models, e.g. ``ball.velocity``), the
+def design_experiment(model_a: Model, model_b: Model | None = None, vary: Sequence[str] = (), *,
+                      idata_a=None, idata_b=None, rng: tuple[float, float] | None = None,
+                      objective: str = "max_sigma", labels=("A", "B"), energy: float | None = None,
+                      restarts: int = 4, random: int = 8, steps: int = 60, seed: int = 0,
+                      outdir: str | Path | None = None, force: bool = False
+                      ) -> list[Proposal] | InfoDesign:
+    """Two models: for each field of ``vary`` (an unknown of both, e.g. ``ball.velocity``), the
     setting whose predictions of the two fitted models differ most in noise units (models
-    without a posterior are fitted here by MAP)."""
+    without a posterior are fitted here by MAP); a list of Proposals.
+
+    One model (``model_b`` None): the excitation of the ``vary`` fields (control sequences
+    within their bounds and the energy budget ``energy`` (∫u² dt; default: a typical random
+    push's), initial states within ``rng``) that maximises the expected information about the
+    other unknowns (D-optimal, Laplace/Fisher through the rollout), ``idata_a`` their posterior
+    (else the prior); an InfoDesign, compared with ``random`` random excitations of the same
+    energy; files (design.json/.txt, control CSVs, experiment.phys) in ``outdir`` if given."""
+    if model_b is None:
+        items = tuple(_varied(model_a, f, rng) for f in vary)  # usage errors first
+        if not items:
+            raise UsageError("nothing to vary", hint="give --vary CONTROL_OR_INITIAL_FIELD")
+        if outdir is not None:
+            io.prepare_outdir(outdir, force=force)
+        found = _information_search(model_a, _belief(model_a, tuple(v.field for v in items), idata_a,
+                                                     seed), items, budget=energy,
+                                    restarts=restarts, random=random, steps=steps, seed=seed)
+        if outdir is not None:
+            _write_information(model_a, found, Path(outdir))
+        return found
     for field in vary:  # usage errors before any fit
         require_unknown((model_a, model_b), field)
     if objective not in OBJECTIVES:

@@ -18,8 +18,7 @@ from typing import Callable
 import numpy as np
 
 from ..errors import UsageError
-from ..expr import constant_value
-from ..observe import trajectory
+from .vary import noise_scales, prior_range, require_unknown  # shared with the information design
 
 
 @dataclass
@@ -81,23 +80,6 @@ def chi2(pa: dict, pb: dict, sigma: dict, times: dict) -> tuple[float, Where]:
 OBJECTIVES = {"max_sigma": max_sigma, "chi2": chi2}
 
 
-def _noise(model, values) -> dict:
-    out = {}
-    for o in model.observed:
-        out[o.obs.name] = np.asarray(model.noise_scale(o.obs, values))
-        out[f"{o.obs.name}:axes"] = trajectory.axes(o.obs.quantity)
-    return out
-
-
-def require_unknown(models, field: str) -> None:
-    """A UsageError unless ``field`` is an unknown of every model."""
-    for m in models:
-        if field not in m.unknown_names:
-            raise UsageError(f"--vary {field}: not an unknown of scene '{m.scene.name}'",
-                             hint="vary a field written with a prior ('~ normal(...)') in both "
-                                  "scenes, e.g. ball.velocity")
-
-
 class Pair:
     """Two fitted models and their values; ``predict(field, x)`` sets the field in both."""
 
@@ -108,7 +90,7 @@ class Pair:
         self.vector = base.ndim > 0 and base.size > 1
         self.direction = base / np.linalg.norm(base) if self.vector else None
         self.recorded = float(np.linalg.norm(base)) if self.vector else float(base)
-        self.sigma = _noise(model_a, values_a)
+        self.sigma = noise_scales(model_a, values_a)
         self.times = {o.obs.name: o.obs.times for o in model_a.observed}
 
     def setting(self, x: float):
@@ -138,17 +120,6 @@ def search(pair: Pair, lo: float, hi: float, objective: Objective = max_sigma, n
         best = max([best] + [(x, *f(x)) for x in xs if x != best[0]], key=lambda t: t[1])
         step /= 2
     return float(best[0]), float(best[1]), best[2], sorted(grid)
-
-
-def prior_range(model, field: str, vector: bool) -> tuple[float, float]:
-    """Mean ± 3 sd of a normal prior (of the magnitude, for a vector along its mean)."""
-    u = next(u for u in model.unknowns if u.name == field)
-    if u.prior.dist != "normal" or len(u.prior.args) < 2:
-        raise UsageError(f"--vary {field}: its prior is not normal; give --range LO:HI")
-    mean, sd = (np.asarray(constant_value(a), float) for a in u.prior.args[:2])
-    centre = float(np.linalg.norm(mean)) if vector else float(mean)
-    spread = 3 * float(np.max(sd))
-    return max(centre - spread, 0.0) if vector else centre - spread, centre + spread
 
 
 def design(model_a, values_a, model_b, values_b, field: str, rng=None,
