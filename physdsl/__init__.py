@@ -47,7 +47,7 @@ __all__ += ["Model", "parse"]
 # the same names stay importable as ``from physdsl.infer.run import ...`` and so on.
 from . import api  # noqa: E402
 from .api import (  # noqa: E402,A004
-    add_effect, check, compile, control, design_experiment, diagnose, export, export_mjcf,
+    add_effect, beyond_library, check, compile, control, design_experiment, diagnose, export, export_mjcf,
     format_source, import_model, infer, load, mpc, read_run, refine, render, render_draws, sample,
     track,
 )

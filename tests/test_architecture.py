@@ -31,7 +31,8 @@ INDEPENDENT = (("syntax", "physics"),)
 
 # Third-party libraries that are optional extras or slow to import (arviz + xarray: over a second,
 # which `physdsl lint` should not pay): these may be imported where used.
-LAZY_LIBRARIES = {"mujoco", "cv2", "matplotlib", "ray", "trimesh", "playwright", "arviz", "xarray"}
+LAZY_LIBRARIES = {"mujoco", "cv2", "matplotlib", "ray", "trimesh", "playwright", "arviz", "xarray",
+                  "pysindy"}
 
 MAX_FILE_LINES = 500
 MAX_FUNCTION_LINES = 80

@@ -27,6 +27,12 @@ def register(app: typer.Typer) -> None:
         revise: list[str] = typer.Option([], "--revise", help="An effect of the scene (EFFECT@TARGET) the "
                                           "loop may swap for another law or drop, like those it adds."),
         force: bool = typer.Option(False, "--force", help="Overwrite a non-empty output folder."),
+        allow_learned: bool = typer.Option(False, "--allow-learned", help="Where no library effect "
+                                           "explains the misfit, add the law distilled from a learned "
+                                           "force to the next round (outside the library; without this "
+                                           "flag it is only reported)."),
+        learned: bool = typer.Option(True, "--learned/--no-learned", help="Learn a force where the "
+                                     "library explains nothing, and report it (round-k/beyond/)."),
     ) -> None:
         """The diagnosis loop: adds, swaps and drops effects until none improves the evidence."""
         from .. import api
@@ -36,10 +42,13 @@ def register(app: typer.Typer) -> None:
         rounds = api.refine(scene, out, max_rounds=max_rounds, backend=backend, chains=chains,
                             warmup=warmup, samples=samples, seed=seed, force=force,
                             confirm_top=confirm, revise=tuple(revise), echo=typer.echo,
-                            progress=True)  # each round's fit: its stages on stderr
+                            progress=True,  # each round's fit: its stages on stderr
+                            allow_learned=allow_learned, learned=learned)
         typer.echo("\nround  action   effect                             RMS (noise units)   ELPD")
         for r in rounds:
             add = f"{r.added['effect']} on {r.added['target']}" if r.added else "-"
+            if r.added and r.added.get("outside_library"):
+                add += " (learned: outside the library)"
             if r.replaced:
                 add = (f"{r.replaced['effect']} -> {add}" if r.added
                        else f"{r.replaced['effect']} on {r.replaced['target']}")

@@ -64,14 +64,21 @@ class _Loop:
     start: dict = field(default_factory=dict)  # where the first chain of a round's fit starts
     rounds: list = field(default_factory=list)
     kept: tuple = ()  # the last round's Models and diagnosis: their compiled programs stay alive
+    # reaching beyond the library (physdsl.discover.beyond_library, passed in by the api) where
+    # nothing in it explains the misfit; its law enters a round only with allow_learned
+    beyond: object = None
+    allow_learned: bool = False
 
 
 def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", chains: int = 2,
            warmup: int = 300, samples: int = 300, seed: int = 0, force: bool = False,
-           confirm_top: int = 2, revise=(), echo=print, progress: bool = False) -> list[Round]:
+           confirm_top: int = 2, revise=(), echo=print, progress: bool = False,
+           beyond=None, allow_learned: bool = False) -> list[Round]:
     """Fit, check, re-examine, diagnose and extend the scene until no addition, swap or drop
     improves the evidence; returns the rounds. ``revise``: effects of the user's scene
-    (``effect@target``) to re-examine like those the loop adds."""
+    (``effect@target``) to re-examine like those the loop adds. ``beyond``: called where no
+    library effect explains the misfit (learn a force, distil a law; its law is added to the
+    next round only with ``allow_learned``)."""
     scene_path = Path(scene_path)
     user = load(scene_path)  # the user's scene checked before anything is written
     if revise:
@@ -82,7 +89,8 @@ def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", cha
     _copy_scene(scene_path, current)
     loop = _Loop(out, scene_path, dict(backend=backend, chains=chains, warmup=warmup,
                                        samples=samples, seed=seed, progress=progress), echo,
-                 revisable={parse(k).key: (parse(k), None) for k in revise})
+                 revisable={parse(k).key: (parse(k), None) for k in revise},
+                 beyond=beyond, allow_learned=allow_learned)
     for k in range(max_rounds + 1):
         current = _round(loop, k, current, k == max_rounds, confirm_top)
         if current is None:
@@ -114,8 +122,11 @@ def _round(loop: _Loop, k: int, current: Path, last: bool, confirm_top: int) -> 
     loop.echo(f"round {k}: {diag.verdict}")
     loop.echo(diag.table())
     if diag.winner is None:
+        learned = _beyond(loop, k, current, model, now, diag) if loop.beyond is not None else None
+        if isinstance(learned, Path):
+            return learned
         _record(loop, k, current, now, "stopped: no addition, swap or drop improves the evidence; "
-                + diag.verdict)
+                + diag.verdict + (f"; {learned}" if learned else ""))
         return None
     _record(loop, k, current, now, diag.verdict)
     loop.kept = (model, now, diag)
@@ -192,6 +203,33 @@ def _add_winner(loop: _Loop, k: int, draft: Draft, model, now, w) -> Path:
     for part in ([cand] if cand.shared else cand.parts()) if cand.kind == "effect" else ():
         loop.revisable[part.key] = (part, _effects(new.scene))
     loop.echo(f"round {k}: added `{w.snippet.strip()}` -> {nxt}")
+    return nxt
+
+
+def _beyond(loop: _Loop, k: int, current: Path, model, now, diag) -> Path | str:
+    """Learn a force where the library explains nothing (``loop.beyond``); the next round's file
+    with its law where ``allow_learned`` permits and a law was found, else the verdict's words."""
+    rows = [r for r in diag.ranking if r.rms_after is not None]
+    best = min(rows, key=lambda r: r.rms_after, default=None)
+    library = None if best is None else {"effect": best.key, "rms": best.rms_after,
+                                         "log_z": best.log_evidence}
+    try:
+        res = loop.beyond(model, now.idata, now.report, current.parent / "beyond",
+                          library=library, echo=loop.echo)
+    except PhysError as err:  # the library's verdict stands; say why nothing was learned
+        loop.echo(f"round {k}: learning a force failed: {err.message}")
+        return f"learning a force failed ({err.message})"
+    if not (loop.allow_learned and res.proposed and res.scene_text):
+        why = "" if not (res.proposed and res.scene_text) else \
+            " (not added: pass --allow-learned to add the distilled law)"
+        return res.verdict + why
+    _record(loop, k, current, now, res.verdict)
+    loop.change = {"action": "learned", "replaced": None,
+                   "added": {"effect": "distilled_law", "target": res.target,
+                             "outside_library": True, "terms": res.law["terms"]}}
+    loop.start = {}
+    nxt = _write_round(loop.out, k + 1, res.scene_text, loop.user_scene)
+    loop.echo(f"round {k}: added the distilled law (outside the library) -> {nxt}")
     return nxt
 
 

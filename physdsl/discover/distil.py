@@ -9,9 +9,9 @@ from dataclasses import dataclass
 import jax
 import jax.numpy as jnp
 import numpy as np
-from pysindy.optimizers import STLSQ
 
 from ..physics.effects.residual_force import body_features, joint_features, network
+from ..errors import UsageError
 from .terms import terms_for
 
 THRESHOLDS = np.geomspace(1e-3, 0.5, 30)  # on columns and force scaled to unit RMS
@@ -81,6 +81,11 @@ def lstsq(theta, y, cols) -> tuple[np.ndarray, float]:
 def supports(s: Samples, max_terms: int = MAX_TERMS) -> list[Support]:
     """Distinct supports STLSQ finds over ``THRESHOLDS``, at most ``max_terms`` terms each,
     fewest terms first (then best fit); coefficients refitted by least squares."""
+    try:  # an optional extra (physdsl[discover]); slow to import, so only where used
+        from pysindy.optimizers import STLSQ
+    except ImportError as err:
+        raise UsageError("distilling a learned force needs PySINDy",
+                         hint="pip install 'physdsl[discover]' (pysindy>=2.1)") from err
     theta, y, names = design(s)
     scale = np.sqrt(np.mean(theta ** 2, axis=0)) + 1e-300
     ys = y / (np.sqrt(np.mean(y ** 2)) + 1e-300)
