@@ -17,8 +17,12 @@ from dataclasses import dataclass
 from ..expr import constant_value, is_constant
 from ..scene import EffectDecl, Scene
 
-# Effects never proposed: they are set up by the user, not discovered.
-NOT_CANDIDATES = {"gravity", "control_force", "spring", "constant_force"}
+# Effects never proposed: they are set up by the user, not discovered. (``constant_force`` is
+# proposed: a steady push on a body, a wind's pressure on a ball or an unlevel table's slope.)
+NOT_CANDIDATES = {"gravity", "control_force", "spring"}
+# Effects that only make sense beside another on the same target: wind is the *change* of
+# quadratic drag when the air moves (alone it carries an anti-drag +c|v|v).
+REQUIRES = {"wind": "quadratic_drag"}
 SENSOR_KINDS = ("offset", "gain", "delay")
 PAIR_EFFECTS_SKIP = {"damper"}  # acts on pairs too, but only where a spring gives anchors
 ANY = "*"  # second target of a material-level candidate: every pair of the fixed body
@@ -87,7 +91,8 @@ def physics_candidates(scene: Scene) -> list[Candidate]:
         if decl.name in NOT_CANDIDATES or decl.strength is None:
             continue
         for target, extra in _targets(scene, decl):
-            if (decl.name, target) not in present:
+            needs = REQUIRES.get(decl.name)
+            if (decl.name, target) not in present and (needs is None or (needs, target) in present):
                 out.append(Candidate("effect", decl.name, target, extra))
         if "pair" in decl.acts_on.split("|") and decl.name not in PAIR_EFFECTS_SKIP:
             for fixed in fixed_bodies(scene):

@@ -29,7 +29,7 @@ import numpy as np
 
 from ..compile import Model
 from ..infer.fit import quick_fit
-from .candidates import Candidate, physics_candidates
+from .candidates import REQUIRES, Candidate, physics_candidates
 from .confirm import REFIT_FAILURES
 from .edits import Draft
 from .evidence import STRONG, laplace_log_evidence
@@ -131,6 +131,8 @@ def reexamine(current: Judged, draft: Draft, revisable: list[Candidate], echo=No
     start = point_estimate(current.model, current.idata)
     wins, lines = [], []
     for cand in revisable:
+        if _required(draft, cand):  # wind stays on drag: neither goes while the other is there
+            continue
         bare = draft.without_candidate(cand)
         options = [(None, bare.module)] + [(alt, bare.add(alt)) for alt in alternatives(draft, cand, bare)]
         for alt, module in options:
@@ -159,6 +161,13 @@ def reexamine(current: Judged, draft: Draft, revisable: list[Candidate], echo=No
     best = max(wins, key=lambda a: (a.comparison.d_log_z if a.comparison.d_log_z is not None
                                     else -math.inf, a.kind == "dropped", a.comparison.d_elpd))
     return best, lines
+
+
+def _required(draft: Draft, cand: Candidate) -> bool:
+    """Whether another effect of the scene needs ``cand`` (``candidates.REQUIRES``: wind, the
+    change of drag in moving air, needs quadratic drag on its body)."""
+    return any(REQUIRES.get(e.effect) == cand.name and tuple(e.target) == cand.target
+               for e in draft.scene.effects)
 
 
 def _name(c: Candidate) -> str:

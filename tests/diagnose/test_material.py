@@ -148,7 +148,7 @@ def test_material_score_column_is_the_sum_of_the_pair_columns(tmp_path, monkeypa
     assert not any(k.endswith(",*.coefficient") for k in got["tested"])  # not in the scene itself
     offset, cols = 0, {}
     for k in sorted(got["tested"]):
-        width = 3 if k.startswith("wind@") else 1
+        width = 3 if k.startswith(("wind@", "constant_force@")) else 1
         cols[k] = got["J_psi"][:, offset: offset + width]
         offset += width
     summed = cols["contact_friction@floor,a.coefficient"] + cols["contact_friction@floor,b.coefficient"]

@@ -163,7 +163,7 @@ def test_refits_stop_at_k_once_one_explains_the_misfit(quadratic, monkeypatch):
 def test_candidates_of_a_contact_scene(tmp_path):
     """Pair effects on the contact pair, body effects on the ball, no damper without a spring,
     nothing already in the scene (its contact friction)."""
-    from physdsl.diagnose.candidates import physics_candidates, sensor_candidates
+    from physdsl.diagnose.candidates import Candidate, physics_candidates, sensor_candidates
 
     from .conftest import ROLL, load_scene, write_csv
 
@@ -171,8 +171,13 @@ def test_candidates_of_a_contact_scene(tmp_path):
     scene = load_scene(tmp_path, ROLL)
     keys = {c.key for c in physics_candidates(scene)}
     assert {"restitution@floor,ball", "rolling_resistance@floor,ball", "linear_drag@ball",
-            "quadratic_drag@ball", "wind@ball"} <= keys
+            "quadratic_drag@ball", "constant_force@ball"} <= keys
     assert not any(k.startswith(("damper@", "contact_friction@", "spring@", "gravity@")) for k in keys)
+    # wind is the change of quadratic drag in moving air: proposed only where that drag is
+    assert "wind@ball" not in keys
+    from physdsl.diagnose.edits import Draft
+    dragged = Draft.of(scene).with_candidate(Candidate("effect", "quadratic_drag", ("ball",)))
+    assert "wind@ball" in {c.key for c in physics_candidates(dragged.scene)}
     assert {c.key for c in sensor_candidates(scene)} == {
         f"{k}@ball.position" for k in ("offset", "gain", "delay")}
 
