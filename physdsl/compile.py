@@ -231,6 +231,11 @@ class Model:
         pooled Model's rollout holds every recording's)."""
         return rollout
 
+    def written_name(self, obs_name: str) -> str:
+        """Observation ``obs_name``'s name as the scene writes it (a pooled Model names each
+        recording's copy ``ball.position[07]``)."""
+        return obs_name
+
     def recording_rollouts(self, rollout) -> list:
         """``simulate``'s rollout as one rollout per recording (one here)."""
         return [rollout]

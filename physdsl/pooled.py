@@ -49,12 +49,13 @@ class PooledModel(Model):
                               if u.name in self.per_experiment else u for u in self.unknowns)
         self.settings = {k: np.array([r.settings[k] for r in ex.recordings], dtype=float)
                          for k in ex.settings}
-        observed, self.recording_of = [], {}
+        observed, self.recording_of, self.written = [], {}, {}
         for i, rec in enumerate(ex.recordings):
             for o in rec.observations:
                 name = observation_name(o.name, rec.name)
                 observed.append(self._prepare(dataclasses.replace(o, name=name)))
                 self.recording_of[name] = i
+                self.written[name] = o.name
         self.observed = tuple(observed)
 
     @property
@@ -103,6 +104,9 @@ class PooledModel(Model):
 
     def recording_rollouts(self, rollout) -> list:
         return [self._one(rollout, r) for r in range(self.n)]
+
+    def written_name(self, obs_name: str) -> str:
+        return self.written.get(obs_name, obs_name)
 
     def simulate(self, values):
         """Every recording's rollout (see ``rollouts``) for the unknowns' ``values``."""

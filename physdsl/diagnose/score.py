@@ -119,7 +119,7 @@ def sensor_columns(model, values, kind: str, obs_name: str, pred=None) -> np.nda
     cols = []
     for o in model.observed:
         n, k = o.mask.shape
-        if o.obs.name != obs_name:
+        if model.written_name(o.obs.name) != obs_name:  # (each recording's, pooled)
             cols.append(None)
             continue
         sigma = np.asarray(model.noise_scale(o.obs, values))

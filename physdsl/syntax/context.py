@@ -186,7 +186,9 @@ class Resolver:
             fields = [p for p in self.sources if p.startswith(head + ".")]
             raise self.err(PhysNameError, f"{self.items_by_name[head]} '{head}' has no field "
                            f"'{'.'.join(node.parts[1:])}'{close(path, fields)}", node.span,
-                           "only fields written in the scene (and shape sizes) can be referred to")
+                           "only fields written in the scene (and shape sizes) can be referred to"
+                           if self.items_by_name[head] != "experiments" else "its fields are "
+                           "the manifest's setting columns: " + (", ".join(fields) or "none"))
         names = list(self.items_by_name) + [p for p in self.sources if "." not in p]
         raise self.err(PhysNameError, f"unknown name '{head}'{close(head, names)}", node.span)
 
