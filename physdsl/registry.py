@@ -11,10 +11,16 @@ decorator and one line of packaging::
 Loading the entry point imports the module (which registers its entries); an entry point that
 names an object (``module:attr``) not registered by then is registered under the entry
 point's name. Names are unique: a second entry under a taken name is refused.
+
+A registry may also name its built-in entries as entry points of its own (``builtins``: name ->
+module). Their names are known without importing anything (``names()``), so a lower floor can
+check a name (the language checks ``world { contact: NAME }`` against the contact models
+without importing physics); the module is imported on the first look-up of its entry.
 """
 from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
+from importlib import import_module
 from importlib.metadata import entry_points
 from typing import Generic, TypeVar
 
@@ -31,9 +37,10 @@ class Registry(Mapping[str, T], Generic[T]):
     """Entries by name, filled by ``add`` (from decorators) and by the entry points of
     ``group``, which are loaded once, on the first look-up."""
 
-    def __init__(self, group: str, what: str):
+    def __init__(self, group: str, what: str, builtins: Mapping[str, str] | None = None):
         self.group = group
         self.what = what  # "effect", "inference backend", ... (for messages)
+        self.builtins = dict(builtins or {})  # name -> module that registers it when imported
         self._entries: dict[str, T] = {}
         self._origin: dict[str, str] = {}  # name -> module that registered it
         self._discovered = False
@@ -55,11 +62,24 @@ class Registry(Mapping[str, T], Generic[T]):
         self._discover()
         return self._origin[name]
 
+    def names(self) -> tuple[str, ...]:
+        """Every name the registry answers to, in order (built-ins, then those registered, then
+        the entry points'), without importing any module."""
+        plugged = [ep.name for ep in entry_points(group=self.group)]
+        return tuple(dict.fromkeys([*self.builtins, *self._entries, *plugged]))
+
+    def _load_builtin(self, name: str) -> None:
+        """Import the module of built-in ``name`` (it registers itself)."""
+        if name in self.builtins and name not in self._entries:
+            import_module(self.builtins[name])
+
     def _discover(self) -> None:
-        """Load the entry points of ``group`` (once)."""
+        """Import the built-ins and load the entry points of ``group`` (once)."""
         if self._discovered:
             return
         self._discovered = True
+        for name in self.builtins:
+            self._load_builtin(name)
         for ep in entry_points(group=self.group):
             try:
                 obj = ep.load()
@@ -75,11 +95,16 @@ class Registry(Mapping[str, T], Generic[T]):
         self._discovered = False
 
     def __getitem__(self, name: str) -> T:
-        self._discover()
+        self._load_builtin(name)
+        if name not in self._entries:
+            self._discover()
         return self._entries[name]
 
     def __contains__(self, name: object) -> bool:
-        self._discover()
+        if isinstance(name, str):
+            self._load_builtin(name)
+        if name not in self._entries:
+            self._discover()
         return name in self._entries
 
     def __iter__(self) -> Iterator[str]:
@@ -98,3 +123,11 @@ class Registry(Mapping[str, T], Generic[T]):
 # in ``stdlib/effects`` (plug-ins), filled by ``physics.effects.register(..., declaration=)``
 # and read by the language's library (``syntax/library.py``), which cannot import physics.
 EFFECT_DECLARATIONS: Registry[str] = Registry("physdsl.effects", "effect declaration")
+
+# Contact models (``world { contact: NAME }``): step functions registered by
+# ``physics.contact_models.contact_model``. The registry lives here so the language can check a
+# name (``names()``) without importing physics; the built-ins' step functions are imported on
+# their first look-up.
+CONTACT_MODELS: Registry = Registry("physdsl.contact_models", "contact model",
+                                    builtins={"lcp": "physdsl.physics.integrate",
+                                              "compliant": "physdsl.physics.integrate"})

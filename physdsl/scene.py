@@ -209,12 +209,21 @@ class Noise:
 
 @dataclass(frozen=True)
 class Sensor:
-    """Terms of a measuring device (SI expressions, None where absent): the observation reads
-    ``gain * pred(t - delay) + offset`` (see physdsl.observe.sensor)."""
+    """Terms of a measuring device by sensor-fault name (SI expressions), in the order written:
+    the built-ins make the observation read ``gain * pred(t - delay) + offset``; what each
+    name does is its entry in ``observe.sensor.SENSOR_FAULTS``. ``sensor.gain`` reads a term
+    (None where absent)."""
 
-    offset: Expr | None = None  # scalar or per axis, in the quantity's units
-    gain: Expr | None = None  # dimensionless, 1 = exact
-    delay: Expr | None = None  # s
+    terms: tuple[tuple[str, Expr], ...] = ()
+
+    def get(self, name: str) -> Expr | None:
+        """The term ``name``, None where the sensor has none."""
+        return dict(self.terms).get(name)
+
+    def __getattr__(self, name: str):
+        if name.startswith("_") or name == "terms":
+            raise AttributeError(name)
+        return self.get(name)
 
 
 @dataclass(frozen=True)

@@ -1,5 +1,6 @@
 """Candidate missing effects: every library effect that could act in a scene and is not in it,
-on every target it could act on, plus sensor faults per observation (offset, gain, delay).
+on every target it could act on, plus sensor faults per observation (the registered ones:
+offset, gain, delay and plug-ins; on the observation kinds that take them).
 
 Pair effects also get material-level candidates: where several contact pairs share one fixed
 body (a table, a floor), the effect on all of them with ONE shared coefficient (a cloth has one
@@ -15,6 +16,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..expr import constant_value, is_constant
+from ..observe.kinds import OBSERVATION_KINDS
+from ..observe.sensor import SENSOR_FAULTS
 from ..scene import EffectDecl, Scene
 
 # Effects never proposed: they are set up by the user, not discovered. (``constant_force`` is
@@ -23,7 +26,6 @@ NOT_CANDIDATES = {"gravity", "control_force", "spring"}
 # Effects that only make sense beside another on the same target: wind is the *change* of
 # quadratic drag when the air moves (alone it carries an anti-drag +c|v|v).
 REQUIRES = {"wind": "quadratic_drag"}
-SENSOR_KINDS = ("offset", "gain", "delay")
 PAIR_EFFECTS_SKIP = {"damper"}  # acts on pairs too, but only where a spring gives anchors
 ANY = "*"  # second target of a material-level candidate: every pair of the fixed body
 SHARED, EACH = "+", "&"  # joints of a group candidate: one shared strength / one per joint
@@ -166,11 +168,16 @@ def _expr_text(expr) -> str:
 
 
 def sensor_candidates(scene: Scene) -> list[Candidate]:
-    """Sensor faults per trajectory observation: a constant offset, a gain, a time delay."""
+    """Sensor faults (``SENSOR_FAULTS``: an offset, a gain, a time delay, plug-ins) per
+    trajectory observation whose kind takes them (``ObservationKind.fault_candidates``)."""
     out = []
     for o in scene.observations:
-        if o.quantity in ("position", "angle", "velocity", "angular_rate"):
-            for kind in SENSOR_KINDS:
-                if getattr(o.sensor, kind, None) is None:  # a term the scene has is no candidate
-                    out.append(Candidate("sensor", kind, (o.name,)))
+        kind = OBSERVATION_KINDS.get(o.quantity)
+        if kind is None or not kind.fault_candidates:
+            continue
+        for fault, spec in SENSOR_FAULTS.items():
+            if not (kind.affine or spec.rotations):
+                continue
+            if o.sensor is None or o.sensor.get(fault) is None:  # a term it has is no candidate
+                out.append(Candidate("sensor", fault, (o.name,)))
     return out

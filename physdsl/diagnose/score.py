@@ -21,6 +21,8 @@ from jax.flatten_util import ravel_pytree
 from scipy import stats
 from scipy.special import gammaln
 
+from ..observe.sensor import SENSOR_FAULTS
+
 
 @dataclass(frozen=True)
 class ScoreResult:
@@ -113,9 +115,12 @@ def chi2_logsf(t: float, k: int) -> float:
 
 
 def sensor_columns(model, values, kind: str, obs_name: str, pred=None) -> np.ndarray:
-    """dr/d(sensor parameter) columns for an offset (per axis), gain or delay on one observation
-    (``pred``: the model's predictions at ``values``, computed if not given)."""
+    """dr/d(sensor parameter) columns of the sensor fault ``kind`` at its off value on one
+    observation (``pred``: the model's predictions at ``values``, computed if not given): a fault
+    on the value by forward-mode derivative of its ``apply`` (an offset: one column per axis, a
+    gain: the prediction), a fault on the reading time as a time shift (delay: f'(t))."""
     pred = model.predict(values) if pred is None else pred
+    fault = SENSOR_FAULTS[kind]
     cols = []
     for o in model.observed:
         n, k = o.mask.shape
@@ -125,13 +130,14 @@ def sensor_columns(model, values, kind: str, obs_name: str, pred=None) -> np.nda
         sigma = np.asarray(model.noise_scale(o.obs, values))
         p = np.asarray(pred[o.obs.name])
         m = o.mask.astype(float)
-        if kind == "offset":
-            blocks = [(-(np.eye(k)[a][None, :] * m) / sigma).reshape(-1) for a in range(k)]
-        elif kind == "gain":
-            blocks = [(-(p * m) / sigma).reshape(-1)]
-        else:  # delay: y(t) = f(t - tau) -> dr/dtau = f'(t) / sigma
+        if fault.on_time:  # delay: y(t) = f(t - tau) -> dr/dtau = f'(t) / sigma
             dp = np.gradient(p, o.obs.times, axis=0)
             blocks = [((dp * m) / sigma).reshape(-1)]
+        else:  # dr/dc = -(d apply(p, c) / dc) / sigma at the off value
+            off = jnp.full((k,) if fault.per_axis else (), fault.off, dtype=p.dtype)
+            d = np.asarray(jax.jacfwd(lambda c: fault.apply(jnp.asarray(p), c))(off))
+            d = d if fault.per_axis else d[..., None]
+            blocks = [(-(d[..., a] * m) / sigma).reshape(-1) for a in range(d.shape[-1])]
         cols.append(np.stack(blocks, axis=1))
     width = next(c.shape[1] for c in cols if c is not None)
     sizes = [o.mask.size for o in model.observed]

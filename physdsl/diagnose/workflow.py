@@ -120,8 +120,9 @@ def observable_fits(model, idata, max_draws: int = MAX_DRAWS) -> list[Observable
 
 
 def _unit(quantity: str) -> str:
-    return {"position": "m", "velocity": "m/s", "angular_velocity": "rad/s",
-            "orientation": "rad", "angle": "rad", "angular_rate": "rad/s"}[quantity]
+    """The unit of the quantity's residuals (an orientation's: rad, its rotation vector)."""
+    kind = trajectory.OBSERVATION_KINDS[quantity]
+    return kind.residual_unit or kind.unit
 
 
 def check_model(model, idata, outdir: Path | None = None, windows: int = 4) -> Report:

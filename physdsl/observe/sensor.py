@@ -8,6 +8,9 @@ residual still wraps). Orientations take only a delay (renormalised, like ``pred
 Each term is a sensor fault registered in ``SENSOR_FAULTS`` (entry-point group
 ``physdsl.sensor_faults``) with its exact ("off") value and unit; a fault that acts on the
 reading time is applied first, then those on the value in the order they were registered.
+A fault is defined once, by its ``@sensor_fault``: the language reads its name, unit and
+constraints from it (``syntax/sensor.py``), the diagnosis its off value and unit (its candidates,
+priors and score columns).
 """
 from __future__ import annotations
 
@@ -33,16 +36,19 @@ class SensorFault(NamedTuple):
     unit: str | None  # SI unit of the term; None: the observed quantity's own
     on_time: bool = False
     rotations: bool = False  # also for orientations (an offset or gain is not a rotation)
+    per_axis: bool = False  # one number or one per axis of the quantity (else one number)
+    positive: bool = False  # a constant value must be > 0
 
 
 SENSOR_FAULTS: Registry[SensorFault] = Registry("physdsl.sensor_faults", "sensor fault")
 
 
 def sensor_fault(name: str, off: float, unit: str | None, on_time: bool = False,
-                 rotations: bool = False):
-    """Decorator registering ``apply`` as the sensor fault ``name``."""
+                 rotations: bool = False, per_axis: bool = False, positive: bool = False):
+    """Decorator registering ``apply`` as the sensor fault ``name`` (``observe X.Q { name: ...}``)."""
     def deco(fn):
-        SENSOR_FAULTS.add(name, SensorFault(fn, off, unit, on_time, rotations), fn.__module__)
+        SENSOR_FAULTS.add(name, SensorFault(fn, off, unit, on_time, rotations, per_axis,
+                                            positive), fn.__module__)
         return fn
     return deco
 
@@ -58,12 +64,12 @@ def delayed(track, grid: np.ndarray, times: np.ndarray, delay):
     return track[lo] * (1 - w) + track[jnp.minimum(lo + 1, n - 1)] * w
 
 
-@sensor_fault("gain", 1.0, "1")
+@sensor_fault("gain", 1.0, "1", positive=True)
 def gain(out, g):
     return g * out
 
 
-@sensor_fault("offset", 0.0, None)
+@sensor_fault("offset", 0.0, None, per_axis=True)
 def offset(out, c):
     return out + c
 
@@ -91,4 +97,4 @@ def terms(obs: Observation) -> dict:
     s = obs.sensor
     if s is None:
         return {}
-    return {k: getattr(s, k) for k in SENSOR_FAULTS if getattr(s, k, None) is not None}
+    return {k: s.get(k) for k in SENSOR_FAULTS if s.get(k) is not None}

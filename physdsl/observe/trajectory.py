@@ -66,10 +66,13 @@ def model_track(rollout, simulator, obs: Observation):
     field = source(obs, simulator)
     data = getattr(rollout, field)
     if field.startswith("marker"):
-        return data[:, simulator.marker_names.index(obs.target)]
-    if field.startswith("body"):
-        return data[:, simulator.body_names.index(obs.target)]
-    return data[:, simulator.joint_names.index(obs.target)][:, None]
+        track = data[:, simulator.marker_names.index(obs.target)]
+    elif field.startswith("body"):
+        track = data[:, simulator.body_names.index(obs.target)]
+    else:
+        track = data[:, simulator.joint_names.index(obs.target)][:, None]
+    read = OBSERVATION_KINDS[obs.quantity].read
+    return track if read is None else read(track)
 
 
 def predict(rollout, simulator, obs: Observation, interp: Interpolation):
@@ -138,11 +141,12 @@ for _name, _kind in {
     "position": ObservationKind("body_pos", 3, ("x", "y", "z"), ("x", "y", "z"), "m",
                                 marker_source="marker_pos"),
     "orientation": ObservationKind("body_quat", 4, ("rx", "ry", "rz"), ("qw", "qx", "qy", "qz"),
-                                   "1", rotation_residual, normalise=True),
+                                   "1", rotation_residual, normalise=True, residual_unit="rad",
+                                   fault_candidates=False),
     "velocity": ObservationKind("body_vel", 3, ("vx", "vy", "vz"), ("vx", "vy", "vz"), "m/s",
                                 marker_source="marker_vel"),
     "angular_velocity": ObservationKind("body_angvel", 3, ("wx", "wy", "wz"),
-                                        ("wx", "wy", "wz"), "rad/s"),
+                                        ("wx", "wy", "wz"), "rad/s", fault_candidates=False),
     "angle": ObservationKind("joint_pos", 1, ("angle",), ("angle",), "rad", wrapped),
     "angular_rate": ObservationKind("joint_vel", 1, ("rate",), ("rate",), "rad/s"),
 }.items():

@@ -1,14 +1,13 @@
-"""Contact models by name (``world { contact_model: ... }``): each is one step function
+"""Contact models by name (``world { contact: ... }``): each is one step function
 ``step(model, prm, state, t, h, forward_only) -> State`` for a scene with contact candidates,
 registered with ``@contact_model(name)`` (built-ins: ``lcp`` and ``compliant`` in
-``integrate.py``; plug-ins: entry-point group ``physdsl.contact_models``)."""
+``integrate.py``, named in ``registry.CONTACT_MODELS``' built-ins so the language knows them
+without importing physics; plug-ins: entry-point group ``physdsl.contact_models``)."""
 from __future__ import annotations
 
-from typing import Callable
+from ..registry import CONTACT_MODELS
 
-from ..registry import Registry
-
-CONTACT_MODELS: Registry[Callable] = Registry("physdsl.contact_models", "contact model")
+__all__ = ["CONTACT_MODELS", "contact_model"]
 
 
 def contact_model(name: str):

@@ -1,7 +1,8 @@
 """Markers (MJCF's sites): ``marker tip on pole { position: (0, 0, -0.25) m }``.
 
 A marker is a massless point fixed in a body's frame; it adds nothing to the dynamics and is
-observed as ``tip.position`` / ``tip.velocity`` (``physics.markers`` computes both).
+observed as ``tip.position`` / ``tip.velocity`` (``physics.markers`` computes both; the
+observation kinds a marker has are those with a ``marker_source``, ``observe.kinds``).
 """
 from __future__ import annotations
 
@@ -10,8 +11,6 @@ from ..errors import PhysNameError
 from ..scene import Marker
 from . import ast
 from .words import close
-
-MARKER_QUANTITIES = ("position", "velocity")
 
 
 def build_marker(r, item: ast.MarkerItem) -> Marker:

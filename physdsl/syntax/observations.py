@@ -1,6 +1,7 @@
 """``observe TARGET.QUANTITY from "file" { noise: ... }``: the quantity checked against what
-its target is (the quantity table is ``observe.trajectory.QUANTITIES``; markers; camera
-images), the noise model and sensor terms resolved, the data read."""
+its target is (the observation kinds of ``observe.kinds.OBSERVATION_KINDS``, which say whether
+a body, a marker or a joint has them; camera images), the noise model and sensor terms
+resolved, the data read."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -9,14 +10,13 @@ import numpy as np
 
 from .. import expr as E
 from ..errors import PhysNameError, PhysStructureError, PhysTypeError
-from ..observe.trajectory import QUANTITIES
+from ..observe.kinds import OBSERVATION_KINDS as QUANTITIES
 from ..scene import Noise, Observation
 from . import ast
 from .data import read_image_times, read_observation
 from .mapping import check_label, unknown_target
-from .markers import MARKER_QUANTITIES
 from .schema import OBSERVE_FIELDS, Spec, spec
-from .sensor import SENSOR_FIELDS, resolve_sensor
+from .sensor import resolve_sensor, sensor_fields
 from .units import DIMLESS, FREQ, Dim, parse_unit
 from .words import close
 
@@ -25,7 +25,7 @@ NOISE_MODELS = ("normal", "student_t")
 
 def quantity_dim(quantity: str, slider: bool = False) -> Dim:
     """The dimension of an observed trajectory quantity (a slider's joint moves in metres)."""
-    unit = QUANTITIES[quantity][4]
+    unit = QUANTITIES[quantity].unit
     if slider:
         unit = unit.replace("rad", "m")
     return DIMLESS if unit == "1" else parse_unit(unit)[1]
@@ -36,7 +36,7 @@ def observe(res, item: ast.ObserveItem) -> Observation:
     q, t = item.quantity, item.target
     name = f"{t}.{q}"
     cols, qdim = _columns(res, item)
-    fs = res.fields_of(item.block, OBSERVE_FIELDS, f"observe {name}")
+    fs = res.fields_of(item.block, OBSERVE_FIELDS | set(sensor_fields()), f"observe {name}")
     if "noise" not in fs:
         raise res.err(PhysStructureError, f"observation '{name}' needs a noise", item.span,
                       "e.g. { noise: 2 mm }  or  { noise ~ half_normal(5 mm) }")
@@ -59,19 +59,20 @@ def _columns(res, item: ast.ObserveItem) -> tuple[tuple[str, ...], Dim]:
     """(data columns, dimension) of the observed quantity; an error where the target is no
     item that has it."""
     q, t = item.quantity, item.target
-    kind = QUANTITIES[q][0].split("_")[0] if q in QUANTITIES else None  # body_pos -> body
+    kind = QUANTITIES[q].target if q != "image" and q in QUANTITIES else None
     if kind == "body":
-        if t in res.marker_index and q in MARKER_QUANTITIES:
+        on_markers = QUANTITIES[q].marker_source is not None
+        if t in res.marker_index and on_markers:
             pass
         elif t not in res.body_index:
-            markers = " and markers" if q in MARKER_QUANTITIES else ""
+            markers = " and markers" if on_markers else ""
             names = list(res.body_index) + (list(res.marker_index) if markers else [])
             raise unknown_target(res, item, "body", names, f"bodies{markers}")
-        return QUANTITIES[q][3], quantity_dim(q)
+        return QUANTITIES[q].columns, quantity_dim(q)
     if kind == "joint":
         if t not in res.joint_index:
             raise unknown_target(res, item, "joint", res.joint_index, "joints")
-        return QUANTITIES[q][3], quantity_dim(q, res.joint_index[t].kind == "slider")
+        return QUANTITIES[q].columns, quantity_dim(q, res.joint_index[t].kind == "slider")
     if q == "image":
         if t not in {c for c, k in res.items_by_name.items() if k == "camera"}:
             raise res.err(PhysNameError, f"images are observed by cameras; unknown camera "
@@ -112,9 +113,9 @@ def _noise(res, name: str, fs: dict, qdim: Dim, dim: int) -> Noise:
 def _images(res, item: ast.ObserveItem, name: str, fs: dict, file: Path,
             noise: Noise) -> Observation:
     """A camera's image observation: its frames and their times (``at`` rate or ``times``)."""
-    if any(k in fs for k in SENSOR_FIELDS):
+    if any(k in fs for k in sensor_fields()):
         raise res.err(PhysStructureError, "images take no sensor terms", item.span,
-                      "offset, gain and delay are for trajectory observations")
+                      f"{', '.join(sensor_fields())} are for trajectory observations")
     rate = None
     if item.rate is not None:
         res.register(f"{name}.rate", item.rate, spec(FREQ, (), True))

@@ -48,8 +48,7 @@ LIGHT_FIELDS = {"direction": spec(DIMLESS, (3,)), "ambient": spec(DIMLESS, None)
                 "diffuse": spec(DIMLESS, None)}
 WORLD_FIELDS = {"gravity", "timestep", "duration", "substeps", "integrator", "contact", "medium"}
 INTEGRATORS = ("semi_implicit_euler", "rk4")
-CONTACT_MODELS = ("lcp", "compliant")
-OBSERVE_FIELDS = {"noise", "model", "df", "offset", "gain", "delay"}
+OBSERVE_FIELDS = {"noise", "model", "df"}  # and the sensor faults' names (syntax/sensor.py)
 EFFECT_TARGETS = ("body", "joint", "pair", "world")
 
 

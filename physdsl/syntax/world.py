@@ -5,7 +5,8 @@ from ..errors import PhysNameError, PhysStructureError, PhysTypeError
 from ..media import MEDIA
 from ..scene import World
 from . import ast
-from .schema import CONTACT_MODELS, INTEGRATORS, WORLD_FIELDS, spec
+from ..registry import CONTACT_MODELS
+from .schema import INTEGRATORS, WORLD_FIELDS, spec
 from .units import TIME
 from .words import close
 
@@ -37,7 +38,7 @@ def build_world(res, scene):
             res.errors.append(res.err(PhysTypeError, "'substeps' is a whole number >= 1",
                                       getattr(node, "span", fs["substeps"].span)))
     for key, attr, choices in (("integrator", "integrator", INTEGRATORS),
-                               ("contact", "contact_model", CONTACT_MODELS),
+                               ("contact", "contact_model", CONTACT_MODELS.names()),
                                ("medium", "medium", tuple(MEDIA))):
         if key in fs:
             node = fs[key].value
