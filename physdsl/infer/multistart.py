@@ -25,6 +25,7 @@ from .backends.map import find_mode, major_modes, remember_modes
 from .base import cached, gauss_newton_fn, value_and_grad_fn
 from .data_starts import data_start
 from .problem import prior_draws_unconstrained, unconstrained_layout, unraveler
+from .spectral_starts import screened_starts
 
 SAME_BASIN_SD = 3.0  # modes closer than this many Laplace sd (Mahalanobis) share a basin
 CENTRE_DRAWS = 256  # prior draws whose coordinate-wise median is the prior's centre
@@ -49,8 +50,10 @@ def start_points(problem, positions, key, given: bool = False) -> tuple[np.ndarr
     then the start from the data, the prior's centre, and the rows of ``positions`` (finite
     prior draws) in the remaining places, every other one with its initial-state unknowns
     from the data (``_with_data_start``: draws 2, 4, ...; draws 1, 3, ... stay as drawn).
-    With the default 4 chains: data, centre, a prior draw, a prior draw thrown as the data
-    say."""
+    Where the data oscillate (``spectral_starts``), half the places after the centre go to
+    prior draws whose predictions oscillate at the data's frequencies. With the default 4
+    chains: data, centre, a prior draw, a prior draw thrown as the data say (oscillating
+    data: data, centre, a draw at the data's frequency, a prior draw)."""
     positions = np.asarray(positions, dtype=float)
     chains = positions.shape[0]
     rows, labels = [], []
@@ -70,6 +73,9 @@ def start_points(problem, positions, key, given: bool = False) -> tuple[np.ndarr
         labels.append("data")
     rows.append(centre)
     labels.append("prior centre")
+    for s in _screened(problem, key, from_data, (chains - len(rows) + 1) // 2):
+        rows.append(s)  # oscillating data: half the remaining starts at the data's frequency
+        labels.append("prior draw at the data's frequency")
     for i, d in enumerate(draws):
         mixed = (_with_data_start(problem, d, from_data)
                  if from_data is not None and i % 2 == 1 else None)
@@ -78,6 +84,16 @@ def start_points(problem, positions, key, given: bool = False) -> tuple[np.ndarr
         if len(rows) >= chains:
             break
     return np.stack(rows[:chains]), labels[:chains]
+
+
+def _screened(problem, key, from_data, n: int) -> list:
+    """``spectral_starts.screened_starts`` ([] where it fails: a helper start)."""
+    try:
+        return screened_starts(problem, jax.random.fold_in(key, 1), from_data, n)
+    except Exception as err:  # noqa: BLE001 - the run goes on with prior draws
+        warnings.warn(f"no start at the data's frequency ({type(err).__name__}: {err})",
+                      stacklevel=2)
+        return []
 
 
 def _with_data_start(problem, draw, from_data):
