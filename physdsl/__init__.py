@@ -2,13 +2,20 @@
 
 Public API: the functions of ``physdsl.api`` (``load`` -> Scene, ``compile`` -> Model,
 ``infer``, ``check``, ``diagnose``, ``refine``, ``add_effect``, ``design_experiment``,
-``render``, ``track``, ``export``, ``sample``), ``parse``, ``Model``, ``Scene`` and the error types. Physics and gradient work
-runs in float64 by default; set ``PHYSDSL_FLOAT32=1`` to trade accuracy for speed.
+``render``, ``track``, ``export``, ``sample``), ``parse``, ``Model``, ``Scene`` and the error
+types; the api's names are imported on first use. ``physdsl.export`` (and compile, infer,
+diagnose, sample, render, track, control) is always the api function, also after
+``import physdsl.export.mjcf``: reach a subpackage by ``from physdsl.export import mjcf``.
+Physics and gradient work runs in float64 by default; set ``PHYSDSL_FLOAT32=1`` to trade
+accuracy for speed.
 """
 from __future__ import annotations
 
 import os
+import sys as _sys
+import types as _types
 import warnings
+from importlib import import_module as _import
 
 import jax
 
@@ -37,19 +44,46 @@ __all__ = [
     "Scene", "Span", "UsageError", "__version__",
 ]
 
-from .compile import Model  # noqa: E402
-from .syntax import parse  # noqa: E402  (.phys text -> AST)
-
-__all__ += ["Model", "parse"]
-
-# The api floor: plain functions over Scene, Model and posterior values. ``infer``, ``diagnose``,
-# ``export``, ``sample``, ``render`` and ``track`` here are these functions; the subpackages of
-# the same names stay importable as ``from physdsl.infer.run import ...`` and so on.
-from . import api  # noqa: E402
-from .api import (  # noqa: E402,A004
-    add_effect, beyond_library, check, compile, control, design_experiment, diagnose, export, export_mjcf,
-    format_source, import_model, infer, load, mpc, read_run, refine, render, render_draws, sample,
-    track,
+# The api floor: plain functions over Scene, Model and posterior values, and ``Model``/``parse``,
+# imported on first use (PEP 562), so ``physdsl --help`` and ``physdsl lint`` do not pay for
+# inference, diagnosis and control. ``API`` lists ``physdsl.api.__all__`` (a test holds them
+# equal).
+API = (
+    "load", "compile", "infer", "check", "diagnose", "refine", "add_effect", "design_experiment",
+    "render", "render_draws", "track", "export", "export_mjcf", "sample", "read_run",
+    "import_model", "format_source", "control", "mpc", "beyond_library",
 )
+_LAZY = {**{name: ".api" for name in API}, "api": None, "Model": ".compile", "parse": ".syntax"}
 
-__all__ += list(api.__all__) + ["api"]
+__all__ += ["Model", "parse", *API, "api"]
+
+
+def __getattr__(name: str):
+    """``physdsl.load``, ``physdsl.Model``, ... : the api's names, imported on first use."""
+    if name not in _LAZY:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    module = _import(".api" if name == "api" else _LAZY[name], __name__)
+    value = module if name == "api" else getattr(module, name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))
+
+
+class _Package(_types.ModuleType):
+    """The package object. Several api functions share their name with a subpackage
+    (``physdsl.export`` the function, ``physdsl/export/`` the package; also compile, infer,
+    diagnose, sample, render, track, control): the import system would rebind
+    ``physdsl.export`` to the subpackage when it is first imported. Here the api's name always
+    means the function; the subpackages are reached by ``from physdsl.export import mjcf`` or
+    ``from physdsl.export.mjcf import ...`` (both read ``sys.modules``)."""
+
+    def __setattr__(self, name: str, value) -> None:
+        if name in API and isinstance(value, _types.ModuleType):
+            return  # a subpackage being imported: it stays in sys.modules, not on this name
+        super().__setattr__(name, value)
+
+
+_sys.modules[__name__].__class__ = _Package

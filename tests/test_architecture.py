@@ -7,6 +7,8 @@ functions and measures files and functions.
 from __future__ import annotations
 
 import ast
+import subprocess
+import sys
 from pathlib import Path
 
 import grimp
@@ -135,3 +137,34 @@ def test_no_function_is_longer_than_a_screen_and_a_half():
                 if size > MAX_FUNCTION_LINES:
                     long.append(f"{name}:{fn.lineno} {fn.name}() {size} lines")
     assert not long, f"functions over {MAX_FUNCTION_LINES} lines:\n  " + "\n  ".join(long)
+
+
+def _fresh(code: str) -> str:
+    """stdout of ``code`` run by a fresh interpreter (import order under the test's control)."""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=300, cwd=PACKAGE.parent)
+    assert out.returncode == 0, out.stderr
+    return out.stdout.strip()
+
+
+def test_the_package_root_names_the_api_and_loads_it_on_first_use():
+    """``physdsl.API`` is ``physdsl.api.__all__``; importing the command line pulls in neither
+    the api nor the floors below it (``physdsl --help`` stays fast), ``physdsl.load`` does."""
+    code = ("import sys, physdsl.cli; heavy = ('physdsl.api', 'physdsl.compile', 'physdsl.infer',"
+            " 'physdsl.syntax', 'numpyro'); print(sorted(m for m in heavy if m in sys.modules));"
+            " import physdsl; physdsl.load; print('physdsl.api' in sys.modules,"
+            " physdsl.API == tuple(physdsl.api.__all__))")
+    assert _fresh(code).splitlines() == ["[]", "True True"]
+
+
+@pytest.mark.parametrize("first", ["physdsl", "physdsl.export.mjcf"])
+def test_an_api_name_means_the_function_also_after_its_subpackage_is_imported(first):
+    """``physdsl.export`` (compile, infer, diagnose, sample, render, track, control) is the api
+    function whichever is imported first, the package or its subpackage of the same name; the
+    subpackages stay reachable by ``from physdsl.export import mjcf``."""
+    code = (f"import {first}\nimport physdsl\nimport physdsl.export.mjcf, physdsl.sample, "
+            "physdsl.infer.run, physdsl.compile, physdsl.render, physdsl.track, physdsl.control, "
+            "physdsl.diagnose.rank\nfrom physdsl.export import mjcf\n"
+            "print(sorted(n for n in physdsl.API if getattr(physdsl, n) is not "
+            "getattr(physdsl.api, n)), callable(physdsl.export), mjcf.__name__)")
+    assert _fresh(code) == "[] True physdsl.export.mjcf"
