@@ -96,8 +96,10 @@ def run_case(name: str, samples: int) -> dict:
         sq += float(np.sum(np.where(d["mask"], r, 0.0) ** 2))
         n += int(np.sum(d["mask"]))
     attrs = getattr(idata, GROUP).attrs
+    block = json.loads(attrs.get("block_check", "{}"))
     return {"rows": rows, "rms": (sq / max(n, 1)) ** 0.5, "wall_s": wall,
-            "discrepancies": attrs.get("discrepancies", "")}
+            "discrepancies": attrs.get("discrepancies", ""),
+            "block_p": block.get("p_value"), "block_factors": block.get("factors")}
 
 
 def main() -> None:
@@ -125,6 +127,9 @@ def main() -> None:
             print(f"case.{name}: timed out after {args.timeout:.0f} s", flush=True)
             continue
         results[name] = out
+        if out.get("block_p") is not None:
+            print(f"block_check.{name}: p {out['block_p']:.3g}, factors "
+                  f"{' '.join(f'{f:.2f}' for f in out['block_factors'])}", flush=True)
         print(f"case.{name}: rms {out['rms']:.3f} sigma; discrepancies {out['discrepancies']}; "
               f"fit {out['wall_s']:.0f} s (wall {time.time() - t0:.0f} s, load "
               f"{os.getloadavg()[0]:.1f})", flush=True)

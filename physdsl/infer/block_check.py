@@ -1,0 +1,126 @@
+"""A model check that residual whiteness cannot fool: refit with one time block left out.
+
+A scene fitted to data from another simulator can leave residuals that look like white noise
+at the stated level (cart-pole friction: MuJoCo's friction is not the tanh law) while its
+mode sits many nats from the truth: the model error is absorbed by the unknowns, differently
+in each part of the record. Refits on parts of the data show it. The record is cut into
+``BLOCKS`` contiguous time blocks; for each, the mode is refitted without that block
+(Levenberg-Marquardt warm-started at the full mode: a few Gauss-Newton steps on the same
+compiled function, the block's rows masked out of the data). Where the model is right, a
+left-out estimate differs from the full one by what the noise of the block explains:
+d_k = theta_(-k) - theta ~ N(0, H_(-k)^-1 - H^-1) (the Hausman variance of nested estimates;
+the d_k of different blocks are nearly independent). The check sums the standardised d_k
+into a chi-square statistic; only where it rejects at ``LEVEL`` do intervals widen, so with
+a right model nothing widens.
+
+How much: a mismatched model's unknowns are not one constant over the record; each part of
+it asks for its own value (the pseudo-true value of that block), and the truth is no nearer
+to the full fit than those values are to each other. The mean square of an unknown's
+standardised departures, E, estimates 1 + tau^2 / (K sigma^2) for K equal blocks (tau^2:
+the variance of the blocks' own values, sigma^2: the posterior variance), so the variance
+reported is sigma^2 + tau^2 = sigma^2 (1 + K (E - 1)): the spread of what the parts of the
+record say (a prediction interval of a random-effects meta-analysis over the blocks), not
+just the standard error of their mean (sigma^2 E, the block jackknife's, which covers the
+pseudo-true value but not the truth). Standardising per block keeps blocks that barely
+inform an unknown (an initial velocity, late in the record) from hiding or faking a
+mismatch.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.stats import chi2
+
+from .backends.map import FOUND_MODES, find_mode
+from .base import gauss_newton_fn
+
+BLOCKS = 8  # contiguous time blocks, each left out once
+STEPS = 15  # Levenberg-Marquardt steps per refit (warm-started at the mode)
+LEVEL = 0.01  # the check rejects the model when the statistic's p-value is below this
+RANK_TOL = 1e-9  # relative eigenvalue below which a direction counts as not informed
+
+
+def time_edges(model, blocks: int = BLOCKS) -> np.ndarray:
+    """Edges of ``blocks`` equal time spans over the measured samples of every observable."""
+    ts = [np.asarray(o.obs.times, float)[np.asarray(o.obs.mask).reshape(len(o.obs.times), -1)
+                                          .any(axis=1)] for o in model.observed]
+    ts = np.concatenate([t for t in ts if t.size]) if ts else np.zeros(0)
+    if ts.size == 0:
+        return np.zeros(0)
+    return np.linspace(ts.min(), ts.max(), blocks + 1)
+
+
+def without_block(problem, lo: float, hi: float, last: bool):
+    """``problem`` with every measured row at times in [lo, hi) ([lo, hi] for the last block)
+    masked out (same shapes and dtypes: the compiled functions are reused)."""
+    data = dict(problem.data)
+    for o in problem.model.observed:
+        t = np.asarray(o.obs.times, float)
+        inside = (t >= lo) & ((t <= hi) if last else (t < hi))
+        d = dict(data[o.obs.name])
+        mask = np.asarray(d["mask"])
+        d["mask"] = np.where(inside.reshape((-1,) + (1,) * (mask.ndim - 1)), False, mask) \
+            .astype(mask.dtype)
+        data[o.obs.name] = d
+    return problem._replace(data=data)
+
+
+def full_mode(problem, draws) -> np.ndarray:
+    """The full data's mode: the best one the run's mode search remembered on this data
+    (``map.remember_modes``), else a Levenberg-Marquardt polish of the draws' mean."""
+    data, record = problem.cache.get(FOUND_MODES, (None, {}))
+    if data is problem.data and record:
+        best = max(record, key=record.get)
+        return np.frombuffer(best, dtype=float).copy()
+    return find_mode(problem, np.asarray(draws, dtype=float).mean(axis=0), STEPS)
+
+
+def block_factors(problem, mode, keep, on_block=None) -> dict | None:
+    """Per unconstrained coordinate in ``keep``: the widening the block check asks for (>= 1),
+    with the statistic; None where no check can be made (no Gauss-Newton function, fewer
+    than two informative blocks, a singular curvature). ``mode``: the full data's mode."""
+    gn = gauss_newton_fn(problem)
+    edges = time_edges(problem.model)
+    if gn is None or edges.size < 3:
+        return None
+    mode = np.asarray(mode, dtype=float)
+    _, _, H = gn(mode)
+    try:
+        cov = np.linalg.inv(np.asarray(H, dtype=float))[np.ix_(keep, keep)]
+    except np.linalg.LinAlgError:
+        return None
+    z2, stat, dof = [], 0.0, 0
+    for k in range(len(edges) - 1):
+        sub = without_block(problem, edges[k], edges[k + 1], k == len(edges) - 2)
+        x = find_mode(sub, mode, STEPS)
+        _, _, Hs = gauss_newton_fn(sub)(x)
+        if on_block is not None:
+            on_block(1)
+        try:
+            cov_k = np.linalg.inv(np.asarray(Hs, dtype=float))[np.ix_(keep, keep)]
+        except np.linalg.LinAlgError:
+            continue
+        d = (x - mode)[keep]
+        D = 0.5 * ((cov_k - cov) + (cov_k - cov).T)  # Hausman: Var(d) to first order
+        lam, U = np.linalg.eigh(D)
+        ok = lam > RANK_TOL * max(float(lam.max(initial=0.0)), 1e-300)
+        if not np.any(ok) or not np.all(np.isfinite(d)):
+            continue
+        proj = U[:, ok].T @ d
+        stat += float(np.sum(proj**2 / lam[ok]))
+        dof += int(ok.sum())
+        var = np.diag(D)
+        informed = var > RANK_TOL * np.maximum(np.diag(cov), 1e-300)
+        z2.append(np.where(informed, d**2 / np.where(informed, var, 1.0), np.nan))
+    if len(z2) < 2 or dof == 0:
+        return None
+    p = float(chi2.sf(stat, dof))
+    excess = np.nanmean(np.stack(z2), axis=0)
+    factors = np.ones(len(keep))
+    if p < LEVEL:
+        e = np.maximum(np.where(np.isfinite(excess), excess, 1.0), 1.0)
+        factors = np.sqrt(1.0 + len(z2) * (e - 1.0))  # sigma^2 + tau^2, tau^2 = K (E - 1) sigma^2
+    return {"factors": factors, "statistic": stat, "dof": dof, "p_value": p,
+            "blocks": len(z2), "excess": np.where(np.isfinite(excess), excess, 1.0)}
+
+
+__all__ = ["BLOCKS", "block_factors", "full_mode", "time_edges", "without_block"]
