@@ -17,11 +17,12 @@ import numpy as np
 from ..compile import Model
 from ..diagnose.edits import load_text
 from ..diagnose.workflow import check_model, point_estimate
-from ..infer.fit import quick_fit
+from ..infer.fit import FIT_DRAWS, fit_with_fallback, start_setting
 from ..syntax.edit import add_effect
 
 FORCE_FRACTION = 0.3  # the residual's force scale, as a fraction of the target's weight (torque)
 G = 9.81
+LEARN_STEPS = 1000  # Levenberg-Marquardt steps: a network's weights need more than a refit's 300
 
 
 @dataclass
@@ -106,4 +107,6 @@ def fit_residual(base: Fit, target: str, hidden: int = 16, center=(0.0, 0.0, 0.0
     key = next(u for u in model.unknowns if u.name.endswith(".weights"))
     rng = np.random.default_rng(seed)
     start = {**base.values, key.name: 0.1 * rng.standard_normal(key.shape)}
-    return fitted(model, quick_fit(model, seed=seed, start=start))
+    idata = fit_with_fallback(model, "map", chains=2, warmup=LEARN_STEPS, samples=FIT_DRAWS,
+                              seed=seed, progress=False, start=start_setting(start))
+    return fitted(model, idata)
