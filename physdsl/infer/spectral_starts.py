@@ -48,13 +48,13 @@ def dominant_frequency(times, values) -> tuple[float, float, float]:
     n = u.size * PAD
     power = np.abs(np.fft.rfft(u * np.hanning(u.size), n)) ** 2
     freqs = np.fft.rfftfreq(n, d=span / (u.size - 1))
-    low = freqs >= MIN_CYCLES / span
-    if not np.any(low):
-        return 0.0, 0.0, span
-    k = int(np.argmax(np.where(low, power, -1.0)))
+    # the strongest component above half a cycle: a drift the polynomial left (a smooth
+    # curve, its power falling from the lowest frequencies) peaks below MIN_CYCLES
+    k = int(np.argmax(np.where(freqs >= 0.5 / span, power, -1.0)))
     band = np.abs(freqs - freqs[k]) <= 2.0 / span  # the Hann window's main lobe
     share = float(np.sum(power[band]) / np.sum(power))
-    return (float(freqs[k]) if share >= PEAK_SHARE else 0.0), share, span
+    cycles = freqs[k] * span >= MIN_CYCLES
+    return (float(freqs[k]) if share >= PEAK_SHARE and cycles else 0.0), share, span
 
 
 def oscillations(model) -> list[tuple[str, int, float, float]]:
