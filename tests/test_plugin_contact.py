@@ -6,10 +6,9 @@ to the height it fell from, where the built-in LCP at the scene's restitution 0.
 e^2 = 1/4 of it."""
 from __future__ import annotations
 
-import sys
-
 import numpy as np
 import pytest
+from plugins import install, looked_at_again
 
 import physdsl
 from physdsl.cli import main
@@ -58,18 +57,10 @@ scene drop {{
 
 @pytest.fixture
 def plugin(tmp_path, monkeypatch):
-    (tmp_path / "demo_contact.py").write_text(CONTACT_PLUGIN)
-    dist = tmp_path / "demo_contact-0.1.dist-info"
-    dist.mkdir()
-    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: demo_contact\nVersion: 0.1\n")
-    (dist / "entry_points.txt").write_text("[physdsl.contact_models]\nelastic = demo_contact\n")
-    monkeypatch.syspath_prepend(str(tmp_path))
-    saved = {k: dict(v) if isinstance(v, dict) else v for k, v in vars(CONTACT_MODELS).items()}
-    CONTACT_MODELS.rediscover()
-    yield
-    vars(CONTACT_MODELS).update(saved)
-    CONTACT_MODELS.rediscover()
-    sys.modules.pop("demo_contact", None)
+    install(tmp_path, monkeypatch, "demo_contact", CONTACT_PLUGIN,
+            {"physdsl.contact_models": "elastic = demo_contact"})
+    with looked_at_again((CONTACT_MODELS,), ("demo_contact",)):
+        yield
 
 
 def apex_after_bounce(text: str) -> float:

@@ -10,12 +10,12 @@ gravity g and F = -k (x - anchor) each coordinate oscillates about anchor + m g 
 from __future__ import annotations
 
 import json
-import sys
 import tomllib
 from pathlib import Path
 
 import numpy as np
 import pytest
+from plugins import install, looked_at_again
 
 from physdsl.cli import main
 from physdsl.diagnose.candidates import Candidate, physics_candidates
@@ -63,23 +63,13 @@ def installed(tmp_path, monkeypatch):
     """The plug-in installed for this test: its module and a .dist-info on sys.path; the
     registries are looked at again, and restored after (other tests see no plug-in)."""
     eps = tomllib.loads((PLUGIN / "pyproject.toml").read_text())["project"]["entry-points"]
-    dist = tmp_path / "site" / "physdsl_demo_effect-0.1.0.dist-info"
-    dist.mkdir(parents=True)
-    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: physdsl-demo-effect\n"
-                                   "Version: 0.1.0\n")
-    (dist / "entry_points.txt").write_text("".join(
-        f"[{group}]\n" + "".join(f"{k} = {v}\n" for k, v in table.items())
-        for group, table in eps.items()))
-    monkeypatch.syspath_prepend(str(tmp_path / "site"))
+    (tmp_path / "site").mkdir()
+    install(tmp_path / "site", monkeypatch, "physdsl_demo_effect", None,
+            {group: "".join(f"{k} = {v}\n" for k, v in table.items()).rstrip()
+             for group, table in eps.items()})
     monkeypatch.syspath_prepend(str(PLUGIN))
-    saved = [(r, {k: dict(v) if isinstance(v, dict) else v for k, v in vars(r).items()})
-             for r in (EFFECTS, EFFECT_DECLARATIONS)]
-    for r, _ in saved:
-        r.rediscover()
-    yield
-    for r, state in saved:
-        vars(r).update(state)
-    sys.modules.pop("physdsl_demo_effect", None)
+    with looked_at_again((EFFECTS, EFFECT_DECLARATIONS), ("physdsl_demo_effect",)):
+        yield
 
 
 @pytest.fixture

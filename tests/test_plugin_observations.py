@@ -5,10 +5,9 @@
 change to physdsl's files (the contact-model row: tests/test_plugin_contact.py)."""
 from __future__ import annotations
 
-import sys
-
 import numpy as np
 import pytest
+from plugins import install, looked_at_again
 
 import physdsl
 from physdsl.cli import main
@@ -57,16 +56,6 @@ scene toss {
 """
 
 
-def install(tmp_path, monkeypatch, module: str, source: str, group: str, entry: str) -> None:
-    """``module`` and a .dist-info naming it under ``group``, on sys.path (what pip leaves)."""
-    (tmp_path / f"{module}.py").write_text(source)
-    dist = tmp_path / f"{module}-0.1.dist-info"
-    dist.mkdir()
-    (dist / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {module}\nVersion: 0.1\n")
-    (dist / "entry_points.txt").write_text(f"[{group}]\n{entry}\n")
-    monkeypatch.syspath_prepend(str(tmp_path))
-
-
 def write_data(folder) -> None:
     """Heights of a ball tossed straight up, read through the bent sensor, 2 mm noise."""
     t = np.arange(0.0, 0.8001, 0.02)
@@ -80,20 +69,12 @@ def write_data(folder) -> None:
 def plugins(tmp_path, monkeypatch):
     lib = tmp_path / "site"
     lib.mkdir()
-    install(lib, monkeypatch, "demo_height", KIND_PLUGIN, "physdsl.observations",
-            "height = demo_height")
-    install(lib, monkeypatch, "demo_bend", FAULT_PLUGIN, "physdsl.sensor_faults",
-            "square_law = demo_bend")
-    saved = [(r, {k: dict(v) if isinstance(v, dict) else v for k, v in vars(r).items()})
-             for r in (OBSERVATION_KINDS, SENSOR_FAULTS)]
-    for r, _ in saved:
-        r.rediscover()
-    yield
-    for r, state in saved:
-        vars(r).update(state)
-        r.rediscover()
-    for module in ("demo_height", "demo_bend"):
-        sys.modules.pop(module, None)
+    install(lib, monkeypatch, "demo_height", KIND_PLUGIN,
+            {"physdsl.observations": "height = demo_height"})
+    install(lib, monkeypatch, "demo_bend", FAULT_PLUGIN,
+            {"physdsl.sensor_faults": "square_law = demo_bend"})
+    with looked_at_again((OBSERVATION_KINDS, SENSOR_FAULTS), ("demo_height", "demo_bend")):
+        yield
 
 
 def test_a_plugin_kind_and_fault_are_linted_and_fitted_back(plugins, tmp_path):

@@ -4,10 +4,9 @@ by the language and by ``physdsl infer`` with no change to physdsl's files (the 
 tests/test_plugin_effect.py)."""
 from __future__ import annotations
 
-import sys
-
 import numpy as np
 import pytest
+from plugins import install, looked_at_again
 
 import physdsl
 from physdsl.cli import main
@@ -50,31 +49,14 @@ scene drop {
 """
 
 
-def install(tmp_path, monkeypatch, module: str, source: str, group: str, entry: str) -> None:
-    """``module`` and a .dist-info naming it under ``group``, on sys.path (what pip leaves)."""
-    (tmp_path / f"{module}.py").write_text(source)
-    dist = tmp_path / f"{module}-0.1.dist-info"
-    dist.mkdir()
-    (dist / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {module}\nVersion: 0.1\n")
-    (dist / "entry_points.txt").write_text(f"[{group}]\n{entry}\n")
-    monkeypatch.syspath_prepend(str(tmp_path))
-
-
 @pytest.fixture
 def plugins(tmp_path, monkeypatch):
-    install(tmp_path, monkeypatch, "demo_prior", DISTRIBUTION_PLUGIN, "physdsl.distributions",
-            "wide_normal = demo_prior")
-    install(tmp_path, monkeypatch, "demo_sampler", BACKEND_PLUGIN, "physdsl.backends",
-            "demo_rmh = demo_sampler")
-    saved = [(r, {k: dict(v) if isinstance(v, dict) else v for k, v in vars(r).items()})
-             for r in (DISTRIBUTIONS, BACKENDS)]
-    for r, _ in saved:
-        r.rediscover()
-    yield
-    for r, state in saved:
-        vars(r).update(state)
-    for module in ("demo_prior", "demo_sampler"):
-        sys.modules.pop(module, None)
+    install(tmp_path, monkeypatch, "demo_prior", DISTRIBUTION_PLUGIN,
+            {"physdsl.distributions": "wide_normal = demo_prior"})
+    install(tmp_path, monkeypatch, "demo_sampler", BACKEND_PLUGIN,
+            {"physdsl.backends": "demo_rmh = demo_sampler"})
+    with looked_at_again((DISTRIBUTIONS, BACKENDS), ("demo_prior", "demo_sampler")):
+        yield
 
 
 def test_a_plugin_distribution_is_a_prior_of_the_language(plugins, tmp_path, capsys):
