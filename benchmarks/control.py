@@ -5,9 +5,12 @@
 - ``design_error_m.dh_arm``: examples/design_dh_arm: the largest error of the designed link
   lengths against the lengths the targets were computed from;
 - ``mpc_success_rate.cartpole``, ``param_error_first``/``_final``, ``mpc_step_ms``, costs with
-  and without refits: examples/control_cartpole/trials.py (MuJoCo plant).
+  and without refits: examples/control_cartpole/trials.py (MuJoCo plant);
+- ``info_gain_ratio.cart``: examples/experiment_cart/trials.py: random pushes' 90% width of the
+  worse-determined unknown over the designed push's (predicted; ``_refit``: measured by
+  refitting), and the predicted and refitted shrinkage of that width.
 
-Run: .venv/bin/python benchmarks/control.py [--only ball|dh_arm|cartpole] [--seeds N]
+Run: .venv/bin/python benchmarks/control.py [--only ball|dh_arm|cartpole|experiment_cart] [--seeds N]
 """
 from __future__ import annotations
 
@@ -61,9 +64,18 @@ def cartpole(seeds: int, duration: float) -> None:
         print(f"{name}: {value:.4g}")
 
 
+def experiment_cart(seeds: int) -> None:
+    trials = _script(EXAMPLES / "experiment_cart" / "trials.py")
+    t0 = time.perf_counter()
+    _, figures = trials.trials(seeds)
+    for name, value in figures.items():
+        print(f"{name}.cart: {value:.4g}")
+    print(f"wall_s.experiment_cart: {time.perf_counter() - t0:.1f}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--only", choices=("ball", "dh_arm", "cartpole"))
+    parser.add_argument("--only", choices=("ball", "dh_arm", "cartpole", "experiment_cart"))
     parser.add_argument("--seeds", type=int, default=10)
     parser.add_argument("--duration", type=float, default=3.0)
     args = parser.parse_args()
@@ -74,6 +86,8 @@ def main() -> None:
         dh_arm()
     if args.only in (None, "cartpole"):
         cartpole(args.seeds, args.duration)
+    if args.only in (None, "experiment_cart"):
+        experiment_cart(min(args.seeds, 4))
     print(f"load_after: {os.getloadavg()[0]:.1f}")
 
 

@@ -99,22 +99,39 @@ class Excitation:
     def __init__(self, model: Model, b: Belief, items: tuple[Varied, ...], budget: float | None):
         self.model, self.belief, self.items, self.budget = model, b, items, budget
         self.cuts = np.cumsum([v.size for v in items])[:-1]
+        key = ("info-design", b.index.tobytes(), budget is None,
+               tuple((v.field, v.lower.tobytes(), v.upper.tobytes()) for v in items))
+        # compiled once per scene structure and excitation: belief, budget and data are arguments
+        self._evaluate = model.cached(key, self._build)
 
-        def objective(w):
-            s = self.settings(w)
-            f = fisher(model, b, s)
-            g = jnp.linalg.slogdet(jnp.asarray(b.precision) + f)[1] - jnp.linalg.slogdet(
-                jnp.asarray(b.precision))[1]
-            return g, (g, f, energy(model, items, s))
+    def _build(self):
+        names, index, items = self.belief.names, self.belief.index, self.items
 
-        self.evaluate = jax.jit(jax.vmap(jax.jacfwd(objective, has_aux=True)))
+        def objective(w, centre, precision, budget, data):
+            b = Belief(names, index, centre, precision, ())
+            s = self.settings(w, budget)
+            f = fisher(self.model, b, s, data)
+            g = jnp.linalg.slogdet(precision + f)[1] - jnp.linalg.slogdet(precision)[1]
+            return g, (g, f, energy(self.model, items, s))
 
-    def settings(self, w) -> dict:
+        return jax.jit(jax.vmap(jax.jacfwd(objective, has_aux=True), in_axes=(0,) + (None,) * 4))
+
+    def evaluate(self, w):
+        """(gradient of the gain, (gain, Fisher matrix, energy)) at each row of ``w``."""
+        b = self.belief
+        return self._evaluate(jnp.asarray(w), jnp.asarray(b.centre), jnp.asarray(b.precision),
+                              jnp.asarray(self.budget if self.budget is not None else 0.0),
+                              self.model.data)
+
+    def settings(self, w, budget=None) -> dict:
+        """The setting of each field at free coordinates ``w``, controls scaled down to the
+        budget (default this excitation's)."""
+        budget = self.budget if budget is None else budget
         parts = jnp.split(jnp.asarray(w), self.cuts) if len(self.items) > 1 else [jnp.asarray(w)]
         out = {v.field: v.value(p) for v, p in zip(self.items, parts)}
         if self.budget is not None:
             e = energy(self.model, self.items, out)
-            s = jnp.minimum(1.0, jnp.sqrt(self.budget / jnp.maximum(e, 1e-300)))
+            s = jnp.minimum(1.0, jnp.sqrt(budget / jnp.maximum(e, 1e-300)))
             out = {v.field: out[v.field] * s if v.control else out[v.field] for v in self.items}
         return out
 

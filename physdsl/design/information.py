@@ -109,27 +109,29 @@ def _unconstrained_draws(model: Model, idata, fitted, centre, slices) -> np.ndar
     return rows
 
 
-def standardized_predictions(model: Model, b: Belief, settings: dict):
+def standardized_predictions(model: Model, b: Belief, settings: dict, data=None):
     """theta (the learned unknowns' unconstrained coordinates) -> every measured component of
     the predicted observations over its noise scale (0 where not measured), with the varied
-    fields at ``settings``; noise scales held at the belief's centre."""
-    point = {**constrain(model, jnp.asarray(b.centre)), **settings}
+    fields at ``settings``; noise scales held at the belief's centre. ``data``: the
+    measurements' masks and times (default ``model.data``; an argument in compiled code)."""
+    data = model.data if data is None else data
+    centre = jnp.asarray(b.centre)
+    point = {**constrain(model, centre), **settings}
     scales = {o.obs.name: jax.lax.stop_gradient(model.noise_scale(o.obs, point)) for o in model.observed}
-    data = model.data
 
     def fn(theta):  # the residuals' geometry (angles wrap, orientations as rotation vectors)
-        values = {**constrain(model, jnp.asarray(b.centre).at[b.index].set(theta)), **settings}
-        preds = model.predict(values)
+        values = {**constrain(model, centre.at[b.index].set(theta)), **settings}
+        preds = model.predict(values, data=data)
         return jnp.concatenate([(Model._residual(o.obs, preds[o.obs.name], data[o.obs.name])
                                  / scales[o.obs.name]).reshape(-1) for o in model.observed])
 
     return fn
 
 
-def fisher(model: Model, b: Belief, settings: dict):
+def fisher(model: Model, b: Belief, settings: dict, data=None):
     """JᵀJ of the standardised predictions at the belief's centre (forward mode: p columns)."""
-    theta = jnp.asarray(b.centre[b.index])
-    jac = jax.jacfwd(standardized_predictions(model, b, settings))(theta)
+    theta = jnp.asarray(b.centre)[b.index]
+    jac = jax.jacfwd(standardized_predictions(model, b, settings, data))(theta)
     return jac.T @ jac
 
 
