@@ -32,10 +32,22 @@ def total_cost(stage, final, X, W):
     return jnp.sum(jax.vmap(stage)(X[:-1], W)) + final(X[-1])
 
 
+def screen(f, stage, final, x0, W, candidates):
+    """The cheapest of the plan ``W`` and the ``candidates`` (C, H, m), rolled out in one batch
+    from ``x0``: a local method started where the cost is flat or at its top (a pole hanging at
+    rest) has no slope to follow; a candidate that already swings gives it one."""
+    plans = jnp.concatenate([W[None], candidates])
+    costs = jax.vmap(lambda w: total_cost(stage, final, rollout(f, x0, w), w))(plans)
+    return plans[jnp.argmin(jnp.where(jnp.isfinite(costs), costs, jnp.inf))]
+
+
 def _positive(Q):
-    """``Q`` shifted by its most negative eigenvalue (if any) plus the regularisation."""
-    low = jnp.min(jnp.linalg.eigvalsh(Q))
-    return Q + (jnp.maximum(0.0, -low) + REGULARISATION) * jnp.eye(Q.shape[0], dtype=Q.dtype)
+    """``Q`` with its eigenvalues replaced by their absolute values, plus the regularisation
+    (saddle-free Newton): where the cost curves down (a pole hanging at the top of its cost),
+    the step still goes downhill with a size set by that curvature, where shifting every
+    eigenvalue to ~0 made it huge and saturated the forces."""
+    lam, vec = jnp.linalg.eigh(Q)
+    return (vec * jnp.abs(lam)) @ vec.T + REGULARISATION * jnp.eye(Q.shape[0], dtype=Q.dtype)
 
 
 def _backward(f, stage, final, X, W):

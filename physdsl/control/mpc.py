@@ -33,6 +33,9 @@ FIRST_ITERATIONS = 10  # before the first force: a cold plan
 TERMINAL = 10.0  # the horizon's last state weighs as this many steps
 REFIT_EVERY = 10  # control periods between refits
 EFFORT_FLOOR = 1e-6  # per N^2 s: keeps the control Hessian positive without an effort term
+PUMP_PERIODS = (0.6, 0.9, 1.2, 1.6, 2.0)  # s: sine pushes screened before each solve
+PUMP_AMPLITUDES = (1.0, 2.5)  # unconstrained units (uniform(-10 N, 10 N): 4.6 N, 8.5 N)
+TAIL = 1e-3  # per unconstrained control squared per step: keeps plans out of the bounds' flat tails
 
 
 @dataclass
@@ -82,7 +85,8 @@ def goal_costs(transition: Transition, holds, weight: float, squash):
 
     def stage(x, w):
         u = squash(w)
-        return miss(x) + max(weight, EFFORT_FLOOR) * jnp.sum(u ** 2) * transition.period
+        return (miss(x) + max(weight, EFFORT_FLOOR) * jnp.sum(u ** 2) * transition.period
+                + TAIL * jnp.sum(w ** 2))
 
     return stage, lambda x: TERMINAL * miss(x)
 
@@ -104,20 +108,43 @@ def goal_terms(model: Model) -> tuple[tuple[Hold, ...], float]:
     return holds, sum(t.weight for t in goal.terms if isinstance(t, Effort))
 
 
+def pumping_plans(horizon: int, period: float, nu: int) -> np.ndarray:
+    """Candidate plans (C, horizon, nu) screened against the warm plan before each iLQR solve
+    (``Controller(screen=True)``), in the controls' unconstrained space: each control alone pushing as a sine of each of ``PUMP_PERIODS`` s
+    and ``PUMP_AMPLITUDES``, both signs (the pushes that pump energy into a swing)."""
+    t = period * np.arange(horizon)
+    plans = []
+    for j in range(nu):
+        for p in PUMP_PERIODS:
+            for a in PUMP_AMPLITUDES:
+                for sign in (1.0, -1.0):
+                    w = np.zeros((horizon, nu))
+                    w[:, j] = sign * a * np.sin(2 * np.pi * t / p)
+                    plans.append(w)
+    return np.asarray(plans)
+
+
 class Controller:
     """The compiled pieces of one scene's MPC: planner, refit, state reader."""
 
-    def __init__(self, model: Model, iterations: int = ITERATIONS):
+    def __init__(self, model: Model, iterations: int = ITERATIONS, screen: bool = True):
         self.transition = tr = build_transition(model)
         self.holds, weight = goal_terms(model)
         self.squash = control_bounds(model, tr.controls)
         stage, final = goal_costs(tr, self.holds, weight, self.squash)
         self.stage = jax.jit(stage)
 
-        def plan(x0, W, z, iterations):
+        candidates = jnp.asarray(pumping_plans(tr.horizon, tr.period, tr.nu))
+
+        def dynamics(z):
             prm = tr.params(z)
-            return ilqr.solve(lambda x, w: tr.step(prm, x, self.squash(w)), stage, final,
-                              x0, W, iterations)
+            return lambda x, w: tr.step(prm, x, self.squash(w))
+
+        def plan(x0, W, z, iterations):
+            f = dynamics(z)
+            if screen:  # the warm plan against fresh pumping pushes, then iLQR
+                W = ilqr.screen(f, stage, final, x0, W, candidates)
+            return ilqr.solve(f, stage, final, x0, W, iterations)
 
         self.plan = jax.jit(plan, static_argnums=3)
         self.iterations = iterations
