@@ -11,6 +11,9 @@ naive scene, let ``diagnose`` refit the library's best candidates, learn a resid
 - ``log_z.CASE``: Laplace log evidence of library best / learned / law,
 - ``wall_s.CASE`` and ``cpu_s.CASE``.
 
+``--source mujoco``: the same cases with data made by MuJoCo (the law applied as
+``xfrc_applied`` / ``qfrc_applied`` before every 0.1 ms step; ``tests/discover/mujoco_data.py``).
+
 ``--mode no-effect --datasets 20``: the same scenes without any hidden law (the ball cases'
 naive scene is then the whole physics); prints ``proposed.CASE.SEED`` and
 ``false_positive_rate: x/N`` (a learned term proposed where nothing is missing).
@@ -28,11 +31,11 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "discover"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import physdsl  # noqa: E402
-from cases import CASES, make  # noqa: E402
 from physdsl.infer.fit import quick_fit  # noqa: E402
+from tests.discover.cases import CASES, make  # noqa: E402
 
 
 def library_best(model, idata, echo) -> dict | None:
@@ -50,10 +53,15 @@ def law_found(case, res) -> bool:
     return all(lo <= case.law[t] <= hi for t, (_, lo, hi) in res.law["coefficients"].items())
 
 
-def run_case(name: str, folder: Path, echo) -> dict:
+def run_case(name: str, folder: Path, echo, source: str = "physdsl") -> dict:
     case = CASES[name]
     t0, c0 = time.time(), time.process_time()
-    model = physdsl.compile(make(case, folder))
+    if source == "mujoco":
+        from tests.discover.mujoco_data import make_mujoco
+        path = make_mujoco(case, folder)
+    else:
+        path = make(case, folder)
+    model = physdsl.compile(path)
     idata = quick_fit(model)
     report = physdsl.check(model, idata)
     echo(f"{name}: naive {report.rms_sigma:.2f}σ")
@@ -107,6 +115,8 @@ def main() -> None:
     ap.add_argument("--mode", choices=["laws", "no-effect"], default="laws")
     ap.add_argument("--datasets", type=int, default=20)
     ap.add_argument("--out", type=Path, default=None)
+    ap.add_argument("--source", choices=["physdsl", "mujoco"], default="physdsl",
+                    help="who simulates the hidden law (mujoco: xfrc_applied / qfrc_applied)")
     args = ap.parse_args()
     folder = args.out or Path(tempfile.mkdtemp(prefix="physdsl-discovery-"))
     echo = lambda s: print(s, file=sys.stderr, flush=True)  # noqa: E731
@@ -116,7 +126,7 @@ def main() -> None:
     else:
         results = {}
         for name in args.case or sorted(CASES):
-            results.update(run_case(name, folder / name, echo))
+            results.update(run_case(name, folder / name, echo, args.source))
     for k, v in results.items():
         print(f"{k}: {v}", flush=True)
     print(f"load: {os.getloadavg()[0]:.1f}")

@@ -68,3 +68,22 @@ def test_no_learned_term_without_a_hidden_law(tmp_path):
                                          center=case.center, echo=lambda s: None)
             proposed += res.proposed
     assert proposed <= 2
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_physdsl_with_the_true_law_reproduces_the_mujoco_data(name, tmp_path):
+    """The MuJoCo-made recordings (law as xfrc_applied / qfrc_applied) and physdsl's rollout of
+    the truth scene agree to a fraction of the noise."""
+    import numpy as np
+    from physdsl.syntax import loads
+
+    from .mujoco_data import simulate
+
+    case = CASES[name]
+    _, mj = simulate(case)
+    make(case, tmp_path)  # placeholder data so the truth scene loads
+    model = physdsl.Model(loads(case.law_text(), filename=str(tmp_path / "t.phys"),
+                                base_dir=tmp_path))
+    pred = np.asarray(next(iter(model.predict(
+        {k: np.asarray(v, float) for k, v in case.truth.items()}).values())))
+    assert np.max(np.abs(pred - mj)) < 0.3 * case.noise
