@@ -15,14 +15,14 @@ def register(app: typer.Typer) -> None:
             check: bool = typer.Option(False, "--check", help="Exit 1 if the file is not formatted."),
             write: bool = typer.Option(False, "--write", "-w", help="Rewrite the file in place.")) -> None:
         """Format a .phys file canonically (comments kept)."""
-        from .. import api
+        from ..syntax import format_source  # = physdsl.format_source; no inference imported
         from ..io import write_text
 
         try:
             text = file.read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError) as ex:
             raise PhysImportError(f"cannot read {file}: {getattr(ex, 'strerror', ex)}") from None
-        pretty = api.format_source(text, str(file))
+        pretty = format_source(text, str(file))
         if check:
             if pretty != text:
                 print(f"{file}: not formatted (run 'physdsl fmt --write {file}')", file=sys.stderr)
