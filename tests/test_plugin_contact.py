@@ -84,3 +84,9 @@ def test_without_the_plugin_the_contact_model_is_unknown(tmp_path, capsys):
     assert main(["lint", str(tmp_path / "drop.phys")]) == 2
     err = capsys.readouterr().err
     assert "unknown contact 'elastic'" in err and "lcp" in err
+
+
+def test_the_builtin_names_the_language_knows_are_the_ones_physics_registers():
+    """``registry.CONTACT_MODELS`` names its built-ins without importing physics (the language
+    checks ``world { contact }`` by them); each is registered by the module named for it."""
+    assert {n: CONTACT_MODELS.origin(n) for n in CONTACT_MODELS} == CONTACT_MODELS.builtins
