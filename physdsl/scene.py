@@ -209,7 +209,7 @@ class Noise:
 
 @dataclass(frozen=True)
 class Sensor:
-    """Terms of a measuring device by sensor-fault name (SI expressions), in the order written:
+    """Terms of a measuring device by sensor-fault name (SI expressions), in the faults' registration order:
     the built-ins make the observation read ``gain * pred(t - delay) + offset``; what each
     name does is its entry in ``observe.sensor.SENSOR_FAULTS``. ``sensor.gain`` reads a term
     (None where absent)."""
