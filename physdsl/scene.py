@@ -209,10 +209,10 @@ class Noise:
 
 @dataclass(frozen=True)
 class Sensor:
-    """Terms of a measuring device by sensor-fault name (SI expressions), in the faults' registration order:
-    the built-ins make the observation read ``gain * pred(t - delay) + offset``; what each
-    name does is its entry in ``observe.sensor.SENSOR_FAULTS``. ``sensor.gain`` reads a term
-    (None where absent)."""
+    """Terms of a measuring device by sensor-fault name (SI expressions), in the faults'
+    registration order: the built-ins make the observation read ``gain * pred(t - delay) +
+    offset``; what each name does is its entry in ``observe.sensor.SENSOR_FAULTS``.
+    ``sensor.gain`` reads a term (None where absent)."""
 
     terms: tuple[tuple[str, Expr], ...] = ()
 
