@@ -1,0 +1,87 @@
+"""Adaptive MPC on the MuJoCo double cart-pole over seeds (issue 17, IDS 3.3): success, the 14
+parameters' error after each refit, ms per MPC step against the plant's 20 ms period, and the
+goal's cost with and without refits (for ``benchmarks/control.py`` and docs/control.md).
+
+Each seed tilts pole 1 by U(-0.05, 0.05) rad from upright and pole 2 by U(-0.05, 0.05) rad
+from straight, and adds N(0, 1e-4) noise to the plant's observations; success: both poles
+within the goal's 0.1 rad (and the cart within its 50 cm) for the whole run.
+
+    python examples/control_double_cartpole/trials.py [SEEDS] [DURATION_S]
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+import physdsl
+from physdsl.control import mpc
+from physdsl.control.mujoco_plant import MujocoPlant
+
+HERE = Path(__file__).resolve().parent
+# plant.xml's values: used to score the estimates, never by the controller
+PLANT = {"m_cart": 1.3, "m1": 0.4, "m2": 0.15, "l1": 0.4, "c1": 0.2, "c2": 0.3,
+         "I1": 0.008, "I2": 0.0055,
+         "joint_damping@cart_slider.coefficient": 0.3,
+         "joint_damping@pole_hinge.coefficient": 0.014,
+         "joint_damping@tip_hinge.coefficient": 0.007,
+         "joint_friction@cart_slider.torque": 0.15,
+         "joint_friction@pole_hinge.torque": 0.0065,
+         "joint_friction@tip_hinge.torque": 0.0035}
+
+
+def errors(values: dict[str, float]) -> dict[str, float]:
+    """Each parameter's relative error against the plant's."""
+    return {n: abs(v - PLANT[n]) / PLANT[n] for n, v in values.items()}
+
+
+def plant_for(seed: int, period: float, noise: float) -> MujocoPlant:
+    rng = np.random.default_rng(seed)
+    start = {"pole_hinge": np.pi + rng.uniform(-0.05, 0.05), "tip_hinge": rng.uniform(-0.05, 0.05)}
+    return MujocoPlant(str(HERE / "plant.xml"), period=period, initial=start, seed=seed,
+                       noise=noise)
+
+
+def trials(seeds: int = 10, duration: float = 3.0, noise: float = 1e-4, every: int = 10,
+           compare: bool = True) -> dict[str, float]:
+    """The figures by name; ``compare`` also runs each seed without refits (for the cost)."""
+    controller = mpc.Controller(physdsl.compile(HERE / "double_cartpole.phys"), screen=False)
+    tr = controller.transition
+    held, held_fixed, ms, cost, curves = [], [], [], {every: [], 0: []}, []
+    for seed in range(seeds):
+        for k in ((every, 0) if compare else (every,)):
+            run = mpc.run(tr.model, plant_for(seed, tr.period, noise), duration, refit_every=k,
+                          controller=controller)
+            cost[k].append(run.cost)
+            if not k:
+                held_fixed.append(run.held())
+                continue
+            held.append(run.held()), ms.extend(run.step_ms[1:])
+            curves.append([float(np.median(list(errors(e["values"]).values())))
+                           for e in run.estimates])
+            print(f"seed {seed}: held {run.held()}, errors {np.round(run.hold_errors(), 3)}, "
+                  f"median parameter error {curves[-1][0]:.2f} -> {curves[-1][-1]:.3f}",
+                  flush=True)
+    curve = np.median(np.asarray(curves), axis=0)  # over seeds, per refit
+    steps = [e["step"] for e in run.estimates]
+    figures = {"mpc_success_rate.double_cartpole": float(np.mean(held)),
+               "param_error_prior.double_cartpole": float(curve[0]),
+               "param_error_final.double_cartpole": float(curve[-1]),
+               "mpc_step_ms.double_cartpole": float(np.median(ms)),
+               "mpc_step_ms_p90.double_cartpole": float(np.percentile(ms, 90)),
+               "mpc_period_ms.double_cartpole": 1e3 * tr.period,
+               "mpc_cost_refit.double_cartpole": float(np.mean(cost[every]))}
+    figures.update({f"param_error_after_{s}_transitions.double_cartpole": float(c)
+                    for s, c in zip(steps[1:], curve[1:]) if s <= 100})
+    if compare:
+        figures["mpc_success_rate_no_refit.double_cartpole"] = float(np.mean(held_fixed))
+        figures["mpc_cost_no_refit.double_cartpole"] = float(np.mean(cost[0]))
+    return figures
+
+
+if __name__ == "__main__":
+    args = [float(a) for a in sys.argv[1:3]]
+    figures = trials(int(args[0]) if args else 10, args[1] if len(args) > 1 else 3.0)
+    for name, value in figures.items():
+        print(f"{name} {value:.4g}")
