@@ -4,13 +4,17 @@
   the ball-ball contact, replayed in MuJoCo; distance of the object ball from its target;
 - ``design_error_m.dh_arm``: examples/design_dh_arm: the largest error of the designed link
   lengths against the lengths the targets were computed from;
-- ``mpc_success_rate.cartpole``, ``param_error_first``/``_final``, ``mpc_step_ms``, costs with
-  and without refits: examples/control_cartpole/trials.py (MuJoCo plant);
+- ``mpc_success_rate.cartpole`` (swing-up from hanging and a 5 s hold, 8 s runs),
+  ``param_error_final``, ``mpc_step_ms``, costs with and without refits:
+  examples/control_cartpole/trials.py (MuJoCo plant); ``*.cartpole_balance``: balance only;
+- ``mpc_success_rate.double_cartpole``, ``param_error_after_N_transitions``/``_final``,
+  ``mpc_step_ms``: examples/control_double_cartpole/trials.py (14 unknowns, MuJoCo plant);
 - ``info_gain_ratio.cart``: examples/experiment_cart/trials.py: random pushes' 90% width of the
   worse-determined unknown over the designed push's (predicted; ``_refit``: measured by
   refitting), and the predicted and refitted shrinkage of that width.
 
-Run: .venv/bin/python benchmarks/control.py [--only ball|dh_arm|cartpole|experiment_cart] [--seeds N]
+Run: .venv/bin/python benchmarks/control.py [--only ball|dh_arm|cartpole|cartpole_balance|
+double_cartpole|experiment_cart] [--seeds N]
 """
 from __future__ import annotations
 
@@ -58,10 +62,21 @@ def dh_arm() -> None:
     print(f"wall_s.dh_arm: {time.perf_counter() - t0:.1f}")
 
 
-def cartpole(seeds: int, duration: float) -> None:
+def cartpole(seeds: int, duration: float, swingup: bool = True) -> None:
     trials = _script(EXAMPLES / "control_cartpole" / "trials.py")
-    for name, value in trials.trials(seeds, duration).items():
+    t0 = time.perf_counter()
+    figures = trials.swingup_trials(seeds) if swingup else trials.trials(seeds, duration)
+    for name, value in figures.items():
         print(f"{name}: {value:.4g}")
+    print(f"wall_s.cartpole{'' if swingup else '_balance'}: {time.perf_counter() - t0:.1f}")
+
+
+def double_cartpole(seeds: int) -> None:
+    trials = _script(EXAMPLES / "control_double_cartpole" / "trials.py")
+    t0 = time.perf_counter()
+    for name, value in trials.trials(seeds).items():
+        print(f"{name}: {value:.4g}")
+    print(f"wall_s.double_cartpole: {time.perf_counter() - t0:.1f}")
 
 
 def experiment_cart(seeds: int) -> None:
@@ -75,9 +90,10 @@ def experiment_cart(seeds: int) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--only", choices=("ball", "dh_arm", "cartpole", "experiment_cart"))
+    parser.add_argument("--only", choices=("ball", "dh_arm", "cartpole", "cartpole_balance",
+                                           "double_cartpole", "experiment_cart"))
     parser.add_argument("--seeds", type=int, default=10)
-    parser.add_argument("--duration", type=float, default=3.0)
+    parser.add_argument("--duration", type=float, default=3.0, help="balance runs' length, s")
     args = parser.parse_args()
     print(f"load_before: {os.getloadavg()[0]:.1f}")
     if args.only in (None, "ball"):
@@ -86,6 +102,10 @@ def main() -> None:
         dh_arm()
     if args.only in (None, "cartpole"):
         cartpole(args.seeds, args.duration)
+    if args.only in (None, "cartpole_balance"):
+        cartpole(args.seeds, args.duration, swingup=False)
+    if args.only in (None, "double_cartpole"):
+        double_cartpole(args.seeds)
     if args.only in (None, "experiment_cart"):
         experiment_cart(min(args.seeds, 4))
     print(f"load_after: {os.getloadavg()[0]:.1f}")
