@@ -13,11 +13,13 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+import jax
 import numpy as np
 
 import physdsl
 from physdsl.control import mpc
 from physdsl.control.mujoco_plant import MujocoPlant
+from physdsl.control.refit import PROCESS_NOISE
 
 HERE = Path(__file__).resolve().parent
 # plant.xml's values: used to score the estimates, never by the controller
@@ -36,6 +38,25 @@ def errors(values: dict[str, float]) -> dict[str, float]:
     return {n: abs(v - PLANT[n]) / PLANT[n] for n, v in values.items()}
 
 
+def prediction_rms(tr, run: mpc.MpcResult, z) -> float:
+    """RMS of the one-period prediction error over the run's transitions at unconstrained
+    ``z``, each state column in units of the refit's process noise."""
+    states, forces = run.states, run.forces
+    pred = np.asarray(_steps(tr)(tr.params(z), states[:-1], forces))
+    half = len(tr.joints)
+    scale = np.concatenate([np.full(half, PROCESS_NOISE[0]), np.full(half, PROCESS_NOISE[1])])
+    return float(np.sqrt(np.mean(((pred - states[1:]) / scale) ** 2)))
+
+
+_STEPS = {}
+
+
+def _steps(tr):
+    if id(tr) not in _STEPS:
+        _STEPS[id(tr)] = jax.jit(jax.vmap(tr.step, in_axes=(None, 0, 0)))
+    return _STEPS[id(tr)]
+
+
 def plant_for(seed: int, period: float, noise: float) -> MujocoPlant:
     rng = np.random.default_rng(seed)
     start = {"pole_hinge": np.pi + rng.uniform(-0.05, 0.05), "tip_hinge": rng.uniform(-0.05, 0.05)}
@@ -48,7 +69,7 @@ def trials(seeds: int = 10, duration: float = 3.0, noise: float = 1e-4, every: i
     """The figures by name; ``compare`` also runs each seed without refits (for the cost)."""
     controller = mpc.Controller(physdsl.compile(HERE / "double_cartpole.phys"), screen=False)
     tr = controller.transition
-    held, held_fixed, ms, cost, curves = [], [], [], {every: [], 0: []}, []
+    held, held_fixed, ms, cost, curves, ratio = [], [], [], {every: [], 0: []}, [], []
     for seed in range(seeds):
         for k in ((every, 0) if compare else (every,)):
             run = mpc.run(tr.model, plant_for(seed, tr.period, noise), duration, refit_every=k,
@@ -60,14 +81,18 @@ def trials(seeds: int = 10, duration: float = 3.0, noise: float = 1e-4, every: i
             held.append(run.held()), ms.extend(run.step_ms[1:])
             curves.append([float(np.median(list(errors(e["values"]).values())))
                            for e in run.estimates])
+            ratio.append(prediction_rms(tr, run, run.final_z)
+                         / prediction_rms(tr, run, tr.centre[tr.index]))
             print(f"seed {seed}: held {run.held()}, errors {np.round(run.hold_errors(), 3)}, "
-                  f"median parameter error {curves[-1][0]:.2f} -> {curves[-1][-1]:.3f}",
+                  f"median parameter error {curves[-1][0]:.2f} -> {curves[-1][-1]:.3f}, "
+                  f"prediction error ratio {ratio[-1]:.3f}",
                   flush=True)
     curve = np.median(np.asarray(curves), axis=0)  # over seeds, per refit
     steps = [e["step"] for e in run.estimates]
     figures = {"mpc_success_rate.double_cartpole": float(np.mean(held)),
                "param_error_prior.double_cartpole": float(curve[0]),
                "param_error_final.double_cartpole": float(curve[-1]),
+               "prediction_error_ratio.double_cartpole": float(np.median(ratio)),
                "mpc_step_ms.double_cartpole": float(np.median(ms)),
                "mpc_step_ms_p90.double_cartpole": float(np.percentile(ms, 90)),
                "mpc_period_ms.double_cartpole": 1e3 * tr.period,

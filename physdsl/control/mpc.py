@@ -52,6 +52,7 @@ class MpcResult:
     holds: tuple[Hold, ...] = ()
     cost: float = 0.0  # the goal's stage cost summed over the run
     hinges: tuple[bool, ...] = ()  # per joint: its coordinate is a periodic angle
+    final_z: np.ndarray | None = None  # the last estimate, in the prior's unconstrained space
 
     def hold_errors(self, settle: float = 0.0) -> list[float]:
         """Each hold term's largest error (its unit) from ``settle`` s to the end."""
@@ -209,7 +210,7 @@ def run(model: Model, plant: Plant, duration: float, *, refit_every: int = REFIT
             on_step(k, obs.t, x, u, z)
     return MpcResult(tr.joints, tr.targets, np.asarray(times), np.asarray(states),
                      np.asarray(forces).reshape(steps, tr.nu), np.asarray(step_ms), estimates,
-                     ctl.holds, cost, tr.hinges)
+                     ctl.holds, cost, tr.hinges, np.asarray(z))
 
 
 def _estimate(tr: Transition, step: int, t: float, z, cov, ms: float) -> dict:

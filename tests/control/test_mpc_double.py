@@ -96,9 +96,8 @@ def test_refit_from_60_transitions_moves_masses_and_predictions_to_the_plant(tra
 
 @pytest.mark.slow
 def test_balance_over_seeds():
-    """Ten seeds of 3 s from a small tilt: balanced in at least 9, and the 14 parameters'
-    median error after 100 transitions below the prior's."""
+    """Ten seeds of 3 s from a small tilt: balanced in at least 9, and the refitted model
+    predicts the run's transitions at least 2x better than the prior's centre (median)."""
     figures = TRIALS.trials(seeds=10, duration=3.0, compare=False)
     assert figures["mpc_success_rate.double_cartpole"] >= 0.9
-    assert (figures["param_error_after_100_transitions.double_cartpole"]
-            < figures["param_error_prior.double_cartpole"])
+    assert figures["prediction_error_ratio.double_cartpole"] < 0.5
