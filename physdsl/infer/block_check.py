@@ -74,10 +74,14 @@ def full_mode(problem, draws) -> np.ndarray:
     return find_mode(problem, np.asarray(draws, dtype=float).mean(axis=0), STEPS)
 
 
-def block_factors(problem, mode, keep, on_block=None) -> dict | None:
+def block_factors(problem, mode, keep, scale=None, on_block=None) -> dict | None:
     """Per unconstrained coordinate in ``keep``: the widening the block check asks for (>= 1),
     with the statistic; None where no check can be made (no Gauss-Newton function, fewer
-    than two informative blocks, a singular curvature). ``mode``: the full data's mode."""
+    than two informative blocks, a singular curvature). ``mode``: the full data's mode;
+    ``scale``: per coordinate, how much wider than the posterior's the intervals are already
+    (the sandwich's: residuals above the noise make every departure larger by as much, which
+    is no mismatch of the law), so departures are judged against those intervals and the
+    factors are relative to them."""
     gn = gauss_newton_fn(problem)
     edges = time_edges(problem.model)
     if gn is None or edges.size < 3:
@@ -88,6 +92,7 @@ def block_factors(problem, mode, keep, on_block=None) -> dict | None:
         cov = np.linalg.inv(np.asarray(H, dtype=float))[np.ix_(keep, keep)]
     except np.linalg.LinAlgError:
         return None
+    S = np.ones(len(keep)) if scale is None else np.asarray(scale, dtype=float)
     z2, stat, dof = [], 0.0, 0
     for k in range(len(edges) - 1):
         sub = without_block(problem, edges[k], edges[k + 1], k == len(edges) - 2)
@@ -101,6 +106,7 @@ def block_factors(problem, mode, keep, on_block=None) -> dict | None:
             continue
         d = (x - mode)[keep]
         D = 0.5 * ((cov_k - cov) + (cov_k - cov).T)  # Hausman: Var(d) to first order
+        D = D * S[:, None] * S[None, :]
         lam, U = np.linalg.eigh(D)
         ok = lam > RANK_TOL * max(float(lam.max(initial=0.0)), 1e-300)
         if not np.any(ok) or not np.all(np.isfinite(d)):
@@ -109,7 +115,7 @@ def block_factors(problem, mode, keep, on_block=None) -> dict | None:
         stat += float(np.sum(proj**2 / lam[ok]))
         dof += int(ok.sum())
         var = np.diag(D)
-        informed = var > RANK_TOL * np.maximum(np.diag(cov), 1e-300)
+        informed = var > RANK_TOL * np.maximum(np.diag(cov) * S**2, 1e-300)
         z2.append(np.where(informed, d**2 / np.where(informed, var, 1.0), np.nan))
     if len(z2) < 2 or dof == 0:
         return None

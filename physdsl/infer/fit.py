@@ -47,10 +47,13 @@ def fit_with_fallback(model, backend: str, **settings):
 
 def quick_fit(model, seed: int = 0, start: dict | None = None):
     """A fast posterior for comparisons: MAP from two prior draws with a Laplace approximation
-    (random-walk Metropolis where that fails, see ``fit_with_fallback``); with ``start``
+    (random-walk Metropolis where that fails, see ``fit_with_fallback``), the model's
+    intervals shown (comparisons are statements within the model); with ``start``
     (constrained values by name) the first optimisation starts there instead."""
     return fit_with_fallback(model, "map", chains=2, warmup=300, samples=FIT_DRAWS, seed=seed,
-                             progress=False, start=start_setting(start or {}))
+                             progress=False, start=start_setting(start or {}),
+                             intervals="model")  # comparisons use the model's posterior:
+    # no block check's refits (``intervals.add_robust``)
 
 
 def wider_than_prior(model, idata, factor: float = 10.0) -> list[str]:

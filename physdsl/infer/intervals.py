@@ -220,15 +220,14 @@ def add_robust(idata, model, problem, flat: np.ndarray, constrained: dict, shown
 
 
 def _block_check(problem, X, keep, Xr, m) -> dict | None:
-    """``block_check``: where its refits on time blocks scatter more than the noise explains,
-    widen the draws ``Xr`` (in place) per coordinate to the measured excess over the model's
-    spread, beyond what the sandwich gave already (no double count). Its figures, or None."""
-    found = block_factors(problem, full_mode(problem, X), keep)
+    """``block_check``: where its refits on time blocks scatter more than the sandwich's
+    intervals explain, widen the draws ``Xr`` (in place) per coordinate by the measured
+    excess over them (no double count). Its figures, or None."""
+    have = Xr[:, keep].std(axis=0) / X[:, keep].std(axis=0)
+    found = block_factors(problem, full_mode(problem, X), keep, scale=have)
     if found is None:
         return None
-    have = Xr[:, keep].std(axis=0) / X[:, keep].std(axis=0)
-    extra = np.maximum(found["factors"] / np.maximum(have, 1e-300), 1.0)
-    Xr[:, keep] = m[keep] + (Xr[:, keep] - m[keep]) * extra
+    Xr[:, keep] = m[keep] + (Xr[:, keep] - m[keep]) * found["factors"]
     return {"p_value": found["p_value"], "statistic": found["statistic"], "dof": found["dof"],
             "blocks": found["blocks"], "factors": np.asarray(found["factors"]).tolist()}
 
