@@ -53,3 +53,23 @@ def test_a_step_that_overflows_is_not_taken():
     assert float(cost) < float(ilqr.total_cost(stage, final, ilqr.rollout(f, x0, jnp.zeros((20, 1))),
                                                jnp.zeros((20, 1))))
     assert np.max(np.abs(np.asarray(W))) <= 0.5
+
+
+def test_at_the_top_of_the_cost_one_iteration_goes_most_of_the_way_down():
+    """A cost with its maximum at the start (10 cos x: a pole hanging where the chord cost
+    peaks): the control Hessian is negative there; with its absolute eigenvalues (saddle-free)
+    one iteration takes the end state past a quarter turn, on the side the start leaned to."""
+    def g(x, w):
+        return x + 0.1 * w
+
+    def flat(x, w):
+        return 1e-3 * w @ w
+
+    def top(x):
+        return 10.0 * jnp.cos(x[0])
+
+    x0, W0 = jnp.array([0.01]), jnp.zeros((10, 1))
+    W, X, cost = ilqr.solve(g, flat, top, x0, W0, iterations=1)
+    assert np.all(np.isfinite(np.asarray(W)))
+    assert float(X[-1, 0]) > np.pi / 2  # 10 cos x < 0: down from the top's 10
+    assert float(cost) < 0.0
