@@ -225,6 +225,17 @@ def experiment_dims(model) -> tuple[dict, dict]:
     return dims, {EXPERIMENT_DIM: list(model.recording_names)}
 
 
+def component_labels(model, u) -> list[str]:
+    """Labels of the scalar components of unknown ``u`` (row-major): ``name``, ``name[i]``,
+    or for a per-recording unknown ``name[RECORDING]`` / ``name[RECORDING][i]``."""
+    size = int(np.prod(u.shape))
+    if not (isinstance(model, PooledModel) and u.name in model.per_experiment):
+        return [u.name] if size == 1 else [f"{u.name}[{i}]" for i in range(size)]
+    inner = size // model.n
+    return [f"{u.name}[{rec}]" + (f"[{i}]" if inner > 1 else "")
+            for rec in model.recording_names for i in range(inner)]
+
+
 def rollout_bytes_per_recording(model) -> int:
     """Bytes of one recording's rollout as the likelihood reads it (its fields, float64)."""
     values = {u.name: jnp.zeros(model.base_shapes[u.name]) for u in model.unknowns}
@@ -236,5 +247,6 @@ def rollout_bytes_per_recording(model) -> int:
 
 MODEL_KINDS["pooled"] = PooledModel
 
-__all__ = ["CHUNK", "EXPERIMENT_DIM", "PooledModel", "experiment_dims", "observation_name",
+__all__ = ["CHUNK", "EXPERIMENT_DIM", "PooledModel", "component_labels", "experiment_dims",
+           "observation_name",
            "rollout_bytes_per_recording"]

@@ -18,7 +18,7 @@ import numpyro
 from .. import io
 from ..compile import OBS_PREFIX, PRED_PREFIX
 from ..errors import UsageError
-from ..pooled import experiment_dims
+from ..pooled import component_labels, experiment_dims
 from ..version import __version__
 from .base import cached
 from .intervals import add_robust, shown_posterior
@@ -117,9 +117,10 @@ def summary_rows(model, idata) -> list[dict]:
     for u in model.unknowns:
         arr = np.asarray(post[u.name].values)  # (chain, draw, *shape)
         flat = arr.reshape(arr.shape[0], arr.shape[1], -1)
+        labels = component_labels(model, u)  # (a recording's by its name: pooled.py)
         for i in range(flat.shape[2]):
             x = flat[:, :, i]
-            label = u.name if flat.shape[2] == 1 else f"{u.name}[{i}]"
+            label = labels[i]
             rows.append({
                 "name": label, "unit": u.unit, "mean": float(np.mean(x)), "sd": float(np.std(x)),
                 "q5": float(np.quantile(x, 0.05)), "q95": float(np.quantile(x, 0.95)),

@@ -56,6 +56,8 @@ def unknowns_rows(scene: Scene) -> list[tuple[str, str, str, str, str, str]]:
     for u in scene.unknowns:
         support = _support(u)
         shape = "scalar" if u.shape == () else "x".join(map(str, u.shape))
+        if u.per_experiment and scene.experiments is not None:  # one per recording
+            shape = f"{shape} per experiment ({len(scene.experiments.recordings)})"
         rows.append((u.name, format_prior(u.prior), support, shape, u.unit, ", ".join(u.used_in)))
     return rows
 

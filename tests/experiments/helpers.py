@@ -46,3 +46,11 @@ def drag_fit(scene: Path, chains: int = 1, **options):
     idata = physdsl.infer(physdsl.compile(scene), backend="map", chains=chains, progress=False,
                           **options)
     return interval(idata, "quadratic_drag@ball.coefficient"), idata
+
+
+def without_drag(scene: Path) -> Path:
+    """``scene`` with its drag effect line removed (what a diagnosis should find)."""
+    text = re.sub(r"\n\s*effect quadratic_drag[^\n]*", "", scene.read_text())
+    out = scene.with_name("naive_" + scene.name)
+    out.write_text(text)
+    return out
