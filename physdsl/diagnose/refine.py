@@ -248,7 +248,7 @@ def _write_round(out: Path, index: int, text: str, scene_path: Path) -> Path:
     """Write round ``index``'s scene (and copies of the data beside it); its path."""
     nxt = out / f"round-{index}" / "scene.phys"
     io.write_text(nxt, text)
-    _copy_data(scene_path.parent, nxt.parent)
+    _copy_data(scene_path.parent, nxt.parent, dirs=_recording_dirs(scene_path))
     return nxt
 
 
@@ -268,18 +268,28 @@ def _name(c) -> str:
 def _copy_scene(src: Path, dst: Path) -> None:
     """Copy the user's scene and its data, so its relative data paths resolve from ``dst``."""
     io.write_text(dst, src.read_text(encoding="utf-8"))
-    _copy_data(src.parent, dst.parent, skip=src.name)
+    _copy_data(src.parent, dst.parent, skip=src.name, dirs=_recording_dirs(src))
 
 
-def _copy_data(src_dir: Path, dst_dir: Path, skip: str = "") -> None:
-    """Copy the measurement files beside a scene (CSV, JSON, images, meshes) into ``dst_dir``."""
+def _recording_dirs(scene_path: Path) -> set[str]:
+    """The folders beside a scene that hold its recordings (``experiments``): copied too."""
+    ex = load(scene_path).experiments
+    if ex is None:
+        return set()
+    return {r.folder.resolve().relative_to(scene_path.parent.resolve()).parts[0]
+            for r in ex.recordings if r.folder.resolve() != scene_path.parent.resolve()}
+
+
+def _copy_data(src_dir: Path, dst_dir: Path, skip: str = "", dirs=()) -> None:
+    """Copy the measurement files beside a scene (CSV, JSON, images, meshes) and the folders
+    ``dirs`` (frames, recordings) into ``dst_dir``."""
     for item in src_dir.iterdir():
         target = dst_dir / item.name
         if item.name == skip or target.exists():
             continue
         if item.is_file() and item.suffix.lower() in (".csv", ".json", ".png", ".jpg", ".obj", ".phys"):
             shutil.copy2(item, target)
-        elif item.is_dir() and item.name == "frames":
+        elif item.is_dir() and (item.name == "frames" or item.name in dirs):
             shutil.copytree(item, target)
 
 
