@@ -43,7 +43,7 @@ scene cart_both {
   control push on rail from "pilot_push.csv" column u
   control push2 on rail2 from "control_rail.csv" column u
   observe rail.angle from "pilot.csv" where joint == "rail" { noise: 2 mm }
-  observe rail2.angle from "experiment.csv" where joint == "rail" { noise: 2 mm }
+  observe rail2.angle from "experiment.csv" where joint == "rail2" { noise: 2 mm }
 }
 """
 
@@ -87,7 +87,7 @@ def refit_width(folder: Path, push, seed: int, cart) -> dict[str, float]:
     together (``BOTH``); each unknown's 90% width."""
     _csv(folder / "control_rail.csv", "u", zip(np.arange(10) * 0.2, np.ravel(push)))
     y = _observe(cart, {**TRUTH, PUSH: np.asarray(push)}, np.random.default_rng(2000 + seed))
-    _csv(folder / "experiment.csv", "angle", zip(TIMES, y), "rail")
+    _csv(folder / "experiment.csv", "angle", zip(TIMES, y), "rail2")
     post = fit(physdsl.compile(folder / "both.phys"), seed)
     return {n: width90(post, n) for n in TRUTH}
 

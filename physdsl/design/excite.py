@@ -21,6 +21,7 @@ from .information import Belief, fisher, intervals
 from .vary import Varied, energy
 
 BUDGET_DRAWS = 256
+BATCH = 4  # rows per compiled call: random excitations and restarts run in chunks of it
 
 
 @dataclass
@@ -117,11 +118,16 @@ class Excitation:
         return jax.jit(jax.vmap(jax.jacfwd(objective, has_aux=True), in_axes=(0,) + (None,) * 4))
 
     def evaluate(self, w):
-        """(gradient of the gain, (gain, Fisher matrix, energy)) at each row of ``w``."""
-        b = self.belief
-        return self._evaluate(jnp.asarray(w), jnp.asarray(b.centre), jnp.asarray(b.precision),
-                              jnp.asarray(self.budget if self.budget is not None else 0.0),
-                              self.model.data)
+        """(gradient of the gain, (gain, Fisher matrix, energy)) at each row of ``w``; rows are
+        padded to a multiple of BATCH so that every call reuses one compiled program."""
+        b, w = self.belief, np.atleast_2d(np.asarray(w, float))
+        n = len(w)
+        padded = np.concatenate([w, np.repeat(w[:1], -n % BATCH, axis=0)])
+        args = (jnp.asarray(b.centre), jnp.asarray(b.precision),
+                jnp.asarray(self.budget if self.budget is not None else 0.0), self.model.data)
+        chunks = [self._evaluate(jnp.asarray(padded[i:i + BATCH]), *args)
+                  for i in range(0, len(padded), BATCH)]
+        return jax.tree_util.tree_map(lambda *a: jnp.concatenate(a)[:n], *chunks)
 
     def settings(self, w, budget=None) -> dict:
         """The setting of each field at free coordinates ``w``, controls scaled down to the

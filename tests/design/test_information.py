@@ -1,4 +1,5 @@
-"""The information design on a short horizon: a cart on a damped rail (unknown mass m and
+"""The information design on a short horizon (the search and its files: ``-m slow``, for
+the compilation of the gain's gradient): a cart on a damped rail (unknown mass m and
 damping c) pushed by a piecewise-constant force. The Fisher matrix through the rollout equals
 the one of the closed-form solution of m x'' = u - c x'; the prior belief is the log-normal's
 exact Gaussian in log space; the search beats every random push of the same energy and stays
@@ -97,6 +98,7 @@ def test_prior_belief_and_its_intervals(model):
     assert got["m"]["upper"][0] == pytest.approx(np.exp(mu + Z90 * 0.5), rel=1e-9)
 
 
+@pytest.mark.slow  # compiling the gain's gradient (forward over forward mode): ~90 s of CPU
 def test_search_beats_random_pushes_within_bounds_and_budget(model, tmp_path):
     item = (varied(model, "rail"),)  # the control on the rail, by its target
     assert item[0].field == PUSH and np.all(item[0].upper == 5.0)
@@ -116,6 +118,7 @@ def test_search_beats_random_pushes_within_bounds_and_budget(model, tmp_path):
     assert "worse-determined" in text and "90% interval width" in text
 
 
+@pytest.mark.slow  # the same compilation (shared when run with the test above)
 def test_files_replay_the_chosen_push(model, tmp_path):
     out = tmp_path / "exp"
     d = physdsl.design_experiment(model, None, ["rail"], restarts=1, random=2, steps=5,
