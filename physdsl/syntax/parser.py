@@ -320,7 +320,7 @@ _VALUE_START = {"NUMBER", "NAME", "LPAR", "MINUS", "PLUS", "STRING"}
 _VALUE_WORDS = "a value (number, vector, name or '~ dist(...)')"
 _ITEM_WORDS = {"scene", "world", "param", "body", "ground", "joint", "contact", "effect",
                "control", "camera", "light", "observe", "import", "effect_type", "marker",
-               "for", "alias", "goal"}
+               "for", "alias", "goal", "experiments"}
 
 
 def _term_words(name: str) -> str:
