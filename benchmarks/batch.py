@@ -17,9 +17,12 @@ process (import, executor start, jobs, summary). Prints ``name: value`` lines:
   started on this machine with 2 CPUs): N jobs over the batch's wall time, with a warm cache;
   the wall time includes starting the workers (and Ray): ``wall_s.*``, ``job_wall_s.*``
   (mean seconds per job inside its worker);
-- ``load_before``/``load_after``: the 1-minute load average (the machine is shared).
+- ``load_before``/``load_after``: the 1-minute load average (the machine is shared);
+- with ``--pooled`` (or ``--pooled-only``): many recordings in one fit (``benchmarks/pooled.py``):
+  ``pooled_interval_ratio.drag`` (one throw's 90% drag interval over the 20 pooled throws')
+  and the memory per recording of the vectorised rollout.
 
-Run: nice .venv/bin/python benchmarks/batch.py [--jobs 8]   (a few minutes on 2 loaded cores)
+Run: nice .venv/bin/python benchmarks/batch.py [--jobs 8] [--pooled]   (minutes on 2 loaded cores)
 """
 from __future__ import annotations
 
@@ -40,6 +43,8 @@ sys.path.insert(0, str(HERE.parent))
 
 from benchmarks.inference import NOISE, SCENE, TIMES, TRUTH  # noqa: E402
 from tests.infer.conftest import simulated_scene  # noqa: E402
+
+from benchmarks.pooled import main as pooled_main  # noqa: E402
 
 CLI = "import sys; from physdsl.cli import main; sys.exit(main())"
 
@@ -93,7 +98,11 @@ def _throughput(scenes: str, tmp: Path, n: int) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--jobs", type=int, default=8)
+    parser.add_argument("--pooled", action="store_true", help="also the pooled-fit figures")
+    parser.add_argument("--pooled-only", action="store_true", help="only the pooled figures")
     args = parser.parse_args()
+    if args.pooled_only:
+        return pooled_main()
     print(f"load_before: {os.getloadavg()[0]:.1f}")
     print(f"cpus: {os.cpu_count()}")
     print(f"jobs: {args.jobs}")
@@ -103,6 +112,8 @@ def main() -> None:
         _compile_figures(tmp / "throws", tmp)
         _throughput(scenes, tmp, args.jobs)
     print(f"load_after: {os.getloadavg()[0]:.1f}")
+    if args.pooled:
+        pooled_main()
 
 
 if __name__ == "__main__":
