@@ -224,7 +224,10 @@ def _block_check(problem, X, keep, Xr, m) -> dict | None:
     intervals explain, widen the draws ``Xr`` (in place) per coordinate by the measured
     excess over them (no double count). Its figures, or None."""
     have = Xr[:, keep].std(axis=0) / X[:, keep].std(axis=0)
-    found = block_factors(problem, full_mode(problem, X), keep, scale=have)
+    try:
+        found = block_factors(problem, full_mode(problem, X), keep, scale=have)
+    except (np.linalg.LinAlgError, ValueError, FloatingPointError):  # a check, not the fit
+        found = None
     if found is None:
         return None
     Xr[:, keep] = m[keep] + (Xr[:, keep] - m[keep]) * found["factors"]
