@@ -34,6 +34,11 @@ def observation_name(obs: str, recording: str) -> str:
     return f"{obs}[{recording}]"
 
 
+class RecordingValues(dict):
+    """One recording's values (``PooledModel.recording_values``), told apart from the pooled
+    values so that they are not sliced twice."""
+
+
 class PooledModel(Model):
     """The Model of a scene with ``experiments``: per-recording and shared unknowns in one
     program, the rollout vectorised over recordings (see the module's docstring)."""
@@ -72,7 +77,9 @@ class PooledModel(Model):
 
     def recording_values(self, values, r: int) -> dict:
         """The values one rollout of recording ``r`` reads (shared ones and its own)."""
-        out = {k: v for k, v in values.items() if k not in self.per_experiment}
+        if isinstance(values, RecordingValues):  # already one recording's
+            return values
+        out = RecordingValues({k: v for k, v in values.items() if k not in self.per_experiment})
         out.update({k: v[r] for k, v in self.stacked(values).items()})
         return out
 
