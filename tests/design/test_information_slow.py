@@ -23,10 +23,12 @@ def _trials():
 @pytest.mark.slow
 def test_designed_push_teaches_twice_as_much_and_refits_agree():
     results, figures = _trials().trials(3, refit_random=1)
+    for r in results:
+        print(r)
     print(figures)
     assert figures["info_gain_ratio"] >= 2.0
     assert abs(figures["shrink_error"]) <= 0.3
-    # measured, not only predicted: the refit after a random push of the same energy is wider
-    assert figures["info_gain_ratio_refit"] >= 1.5
-    for r in results:  # the choice respects its energy budget
-        assert r["energy"] <= r["budget"] * (1 + 1e-9)
+    for r in results:  # measured, not only predicted: refitted after a random push of the same
+        # energy, the worse-determined unknown is wider than refitted after the designed push
+        assert all(rr[r["worst"]] > r["refit_after"][r["worst"]] for rr in r["refit_random"])
+        assert r["energy"] <= r["budget"] * (1 + 1e-9)  # the choice respects its energy budget
