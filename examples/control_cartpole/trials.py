@@ -65,15 +65,18 @@ def _upright_since(run: mpc.MpcResult, tolerance: float) -> float:
 
 
 def swingup_trials(seeds: int = 10, duration: float = 8.0, noise: float = 1e-4,
-                   every: int = 10) -> dict[str, float]:
-    """Swing-up and balance from hanging, with refits every ``every`` periods and without."""
+                   every: int = 10, first: int = 0, compare: int | None = None
+                   ) -> dict[str, float]:
+    """Swing-up and balance from hanging, seeds ``first`` on, with refits every ``every``
+    periods and, for the first ``compare`` of them (all by default), without."""
     controller = mpc.Controller(physdsl.compile(HERE / "swingup.phys"))
     tr = controller.transition
     (tolerance,) = [h.within for h in controller.holds if h.joint == "pole_hinge"]
     held, up, errors, ms, cost, held_fixed = [], [], [], [], {every: [], 0: []}, []
-    for seed in range(seeds):
+    compare = seeds if compare is None else compare
+    for seed in range(first, first + seeds):
         tilt = np.random.default_rng(seed).uniform(-0.05, 0.05)
-        for k in (every, 0):
+        for k in ((every, 0) if seed < first + compare else (every,)):
             plant = MujocoPlant(str(HERE / "plant.xml"), period=tr.period,
                                 initial={"pole_hinge": tilt}, seed=seed, noise=noise)
             run = mpc.run(tr.model, plant, duration, refit_every=k, controller=controller)
@@ -82,16 +85,19 @@ def swingup_trials(seeds: int = 10, duration: float = 8.0, noise: float = 1e-4,
             cost[k].append(run.cost)
             if not k:
                 held_fixed.append(ok)
+                print(f"seed {seed} without refits: upright from {since:.2f} s, held {ok}, "
+                      f"cost {run.cost:.1f}", flush=True)
                 continue
             held.append(ok), up.append(since), ms.extend(run.step_ms[1:])
             final = run.estimates[-1]["values"]
             errors.append(max(abs(final["pole.mass"] - PLANT_MASS) / PLANT_MASS, abs(
                 final["joint_damping@cart_slider.coefficient"] - PLANT_DAMPING) / PLANT_DAMPING))
-            print(f"seed {seed}: upright from {since:.2f} s, held {ok}, mass "
+            print(f"seed {seed}: upright from {since:.2f} s, held {ok}, cost {run.cost:.1f}, "
+                  f"{np.median(run.step_ms[1:]):.0f} ms per step, mass "
                   f"{final['pole.mass']:.4f} kg, damping "
                   f"{final['joint_damping@cart_slider.coefficient']:.4f} N s/m", flush=True)
     return {"mpc_success_rate.cartpole": float(np.mean(held)),
-            "mpc_success_rate_no_refit.cartpole": float(np.mean(held_fixed)),
+            "mpc_success_rate_no_refit.cartpole": float(np.mean(held_fixed or [np.nan])),
             "swingup_time_s_median.cartpole": float(np.median(up)),
             "param_error_final.cartpole": float(np.median(errors)),
             "param_error_final_max.cartpole": float(np.max(errors)),
@@ -99,7 +105,7 @@ def swingup_trials(seeds: int = 10, duration: float = 8.0, noise: float = 1e-4,
             "mpc_step_ms_p90.cartpole": float(np.percentile(ms, 90)),
             "mpc_period_ms.cartpole": 1e3 * tr.period,
             "mpc_cost_refit.cartpole": float(np.mean(cost[every])),
-            "mpc_cost_no_refit.cartpole": float(np.mean(cost[0]))}
+            "mpc_cost_no_refit.cartpole": float(np.mean(cost[0] or [np.nan]))}
 
 
 if __name__ == "__main__":
