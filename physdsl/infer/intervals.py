@@ -302,8 +302,14 @@ def describe(idata) -> str:
     """One line for the terminal: which intervals the summary shows and how much they widened."""
     post, label = shown_posterior(idata)
     if label == "robust":
-        return (f"intervals: robust ({METHOD}; widest {post.attrs.get('max_widening', 1.0):.2g}x "
-                f"the model posterior's; `--intervals model` for the plain posterior)")
+        block = json.loads(post.attrs.get("block_check", "{}"))
+        check = ("" if "p_value" not in block else
+                 f"; block check p = {block['p_value']:.2g}: "
+                 + ("the parts of the record disagree, widened" if max(block["factors"]) > 1
+                    else "the parts of the record agree"))
+        return (f"intervals: robust ({post.attrs.get('method', METHOD)}; widest "
+                f"{post.attrs.get('max_widening', 1.0):.2g}x the model posterior's{check}; "
+                f"`--intervals model` for the plain posterior)")
     note = idata.attrs.get("intervals_note")
     return "intervals: model (the plain posterior)" + (f"; {note}" if note else "")
 

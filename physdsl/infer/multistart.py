@@ -50,10 +50,8 @@ def start_points(problem, positions, key, given: bool = False) -> tuple[np.ndarr
     then the start from the data, the prior's centre, and the rows of ``positions`` (finite
     prior draws) in the remaining places, every other one with its initial-state unknowns
     from the data (``_with_data_start``: draws 2, 4, ...; draws 1, 3, ... stay as drawn).
-    Where the data oscillate (``spectral_starts``), half the places after the centre go to
-    prior draws whose predictions oscillate at the data's frequencies. With the default 4
-    chains: data, centre, a prior draw, a prior draw thrown as the data say (oscillating
-    data: data, centre, a draw at the data's frequency, a prior draw)."""
+    With the default 4 chains: data, centre, a prior draw, a prior draw thrown as the data
+    say. (Draws at the data's frequency come later, in ``search``, where they are needed.)"""
     positions = np.asarray(positions, dtype=float)
     chains = positions.shape[0]
     rows, labels = [], []
@@ -73,9 +71,6 @@ def start_points(problem, positions, key, given: bool = False) -> tuple[np.ndarr
         labels.append("data")
     rows.append(centre)
     labels.append("prior centre")
-    for s in _screened(problem, key, from_data, (chains - len(rows) + 1) // 2):
-        rows.append(s)  # oscillating data: half the remaining starts at the data's frequency
-        labels.append("prior draw at the data's frequency")
     for i, d in enumerate(draws):
         mixed = (_with_data_start(problem, d, from_data)
                  if from_data is not None and i % 2 == 1 else None)
@@ -112,15 +107,46 @@ def _with_data_start(problem, draw, from_data):
         return None
 
 
-def search(problem, starts, labels, steps: int, on_start=None) -> Search:
+def search(problem, starts, labels, steps: int, on_start=None, key=None) -> Search:
     """Optimise from every start, group the modes into basins, move minor ones to the best.
-    ``on_start(i, label)``: called before start ``i``'s optimisation (progress)."""
-    modes = []
-    for i, x in enumerate(np.asarray(starts)):
-        if on_start is not None:
-            on_start(i, labels[i])
-        modes.append(find_mode(problem, x, steps))
-    modes = np.stack(modes)
+    ``on_start(i, label)``: called before start ``i``'s optimisation (progress).
+
+    Where the best mode's residuals stay far above the noise (``RESCREEN_RMS``) and the data
+    oscillate, prior draws at the data's frequency (``spectral_starts``, ``key``) are
+    optimised too; each that ends better than the worst chain's mode takes that chain. Fits
+    that already match the data pay nothing for it (a screen simulates 64 draws)."""
+    modes = np.stack([_optimised(problem, x, steps, on_start, i, labels[i])
+                      for i, x in enumerate(np.asarray(starts))])
+    lps, rms, curv = _assess(problem, modes)
+    all_modes, all_labels = modes, list(labels)
+    extra = _frequency_round(problem, starts, labels, lps, rms, steps, key, on_start)
+    if extra is not None:
+        xl, xr, xc = _assess(problem, extra)
+        all_modes = np.concatenate([modes, extra])
+        all_labels += [SCREENED] * len(extra)
+        lps, rms, curv = np.concatenate([lps, xl]), np.concatenate([rms, xr]), curv + xc
+        chains = np.argsort(-lps, kind="stable")[:len(modes)]
+        modes, chain_lps = all_modes[chains], lps[chains]
+    basins = _cluster(problem, all_modes, lps, rms, curv, all_labels)
+    kept, kept_lps, best = major_modes(problem, modes,
+                                       lps=lps if extra is None else chain_lps)
+    remember_modes(problem, kept, kept_lps)  # MAP keeps them as its modes (no second search)
+    return Search(kept, basins, best)
+
+
+SCREENED = "prior draw at the data's frequency"
+RESCREEN_RMS = 1.5  # best residual RMS (noise units) above which oscillating data are screened
+SCREENED_STARTS = 2  # draws at the data's frequency optimised then
+
+
+def _optimised(problem, x, steps, on_start, i, label):
+    if on_start is not None:
+        on_start(i, label)
+    return find_mode(problem, x, steps)
+
+
+def _assess(problem, modes):
+    """(log densities, residual RMS, Gauss-Newton curvatures or Nones) of ``modes``."""
     gn = gauss_newton_fn(problem)
     if gn is not None:
         evals = [gn(jnp.asarray(m)) for m in modes]
@@ -132,10 +158,22 @@ def search(problem, starts, labels, steps: int, on_start=None) -> Search:
         curv = [None] * len(modes)
     lps = np.where(np.isfinite(lps), lps, -np.inf)
     rms = np.array([residual_rms(problem, m, lp) for m, lp in zip(modes, lps)])
-    basins = _cluster(problem, modes, lps, rms, curv, labels)
-    kept, kept_lps, best = major_modes(problem, modes, lps=lps)
-    remember_modes(problem, kept, kept_lps)  # MAP keeps them as its modes (no second search)
-    return Search(kept, basins, best)
+    return lps, rms, curv
+
+
+def _frequency_round(problem, starts, labels, lps, rms, steps, key, on_start):
+    """Modes from draws at the data's frequency (``spectral_starts``), or None where the best
+    mode fits (RMS at most ``RESCREEN_RMS``, or unknown) or no draw matches. Their initial
+    state is the start from the data's, where there is one."""
+    if not np.any(np.isfinite(lps)) or not rms[int(np.argmax(lps))] > RESCREEN_RMS:
+        return None
+    from_data = np.asarray(starts)[labels.index("data")] if "data" in labels else None
+    key = jax.random.PRNGKey(0) if key is None else key
+    xs = _screened(problem, key, from_data, SCREENED_STARTS)
+    if not xs:
+        return None
+    return np.stack([_optimised(problem, x, steps, on_start, len(labels) + j, SCREENED)
+                     for j, x in enumerate(xs)])
 
 
 def _cluster(problem, modes, lps, rms, curv, labels) -> list[dict]:

@@ -216,7 +216,8 @@ def starts(model, settings: Settings, optimise_steps: int, basins: list | None =
     positions, labels = start_points(problem, positions, jax.random.fold_in(k_init, CENTRE_KEY),
                                      given=bool(settings.start))
     if optimise_steps > 0:
-        found = search(problem, positions, labels, optimise_steps, on_start)  # (progress)
+        found = search(problem, positions, labels, optimise_steps, on_start,  # (progress)
+                       key=jax.random.fold_in(k_init, CENTRE_KEY + 1))
         positions = found.modes
         if basins is not None:
             basins.extend(found.basins)

@@ -1,4 +1,5 @@
-"""Issue 21: oscillating data get starts at the data's frequency (``spectral_starts``).
+"""Issue 21: oscillating data get starts at the data's frequency (``spectral_starts``) where
+the usual starts leave the residuals far above the noise (``multistart.search``).
 
 The spring case is MuJoCo-made (``examples/no-effect/spring_01``: a block on a spring,
 3 cycles in 3 s, stiffness uniform(5, 200) N/m a priori): without the screened start every
@@ -44,17 +45,19 @@ def _best_basin(model):
     key = jax.random.PRNGKey(0)
     problem, positions = make_problem(model, key, 4)
     rows, labels = multistart.start_points(problem, positions, jax.random.fold_in(key, 7))
-    return labels, multistart.search(problem, rows, labels, 300).basins[0]
+    found = multistart.search(problem, rows, labels, 300, key=jax.random.fold_in(key, 8))
+    return found.basins[0], found
 
 
 def test_spring_from_mujoco_fits_in_the_right_basin():
     model = _spring_model()
     (name, comp, freq, _), = oscillations(model)
     assert name == "block.position" and comp == 2 and abs(2 * np.pi * freq - 6.78) < 0.1
-    labels, best = _best_basin(model)
-    assert "prior draw at the data's frequency" in labels
+    best, found = _best_basin(model)
+    assert multistart.SCREENED in best["starts"]  # the four usual starts end at 2.2σ
     assert best["rms_sigma"] < 1.05
     assert abs(best["values"][STIFFNESS] - TRUTH) < 0.01 * TRUTH
+    assert found.modes.shape[0] == 4  # the screened mode took a chain
 
 
 @pytest.mark.slow
@@ -62,6 +65,6 @@ def test_spring_without_the_screened_start_misses_the_oscillation(monkeypatch):
     """The cause: the same starts less the screened one all end where the stiffness is
     4-8x the truth (what the fit did before ``spectral_starts``)."""
     monkeypatch.setattr(multistart, "screened_starts", lambda *a, **k: [])
-    labels, best = _best_basin(_spring_model())
-    assert "prior draw at the data's frequency" not in labels
+    best, _ = _best_basin(_spring_model())
+    assert multistart.SCREENED not in best["starts"]
     assert best["rms_sigma"] > 2.0 and best["values"][STIFFNESS] > 1.5 * TRUTH
