@@ -10,6 +10,13 @@ mujoco_body_steps_per_s (mj_step on the same scene, one thread), float32_speedup
 float32 rollout time, PHYSDSL_FLOAT32=1 in a subprocess) and float32_max_pos_err_m (largest
 body-position difference between the float32 and float64 rollouts over the horizon). Then
 benchmarks/contact.py's lines (LCP solve, implicit / unrolled / finite-difference gradients).
+Then ``chain_scaling.*.N`` (N hinged links, N = 2, 5, 10, 20; also the recursive tree algorithms
+the vectorised ``physics/tree.py`` replaced, as ``recursive_*``) and ``contact_scaling.*.N``
+(N balls in a box, N = 2 .. 32): steps_per_s, mujoco_steps_per_s, ours_over_mujoco,
+compile_cpu_s, growth_exponent (time per step ~ N^k between the smallest and largest N).
+``--scaling``: those lines alone; ``--profile``: per-stage microseconds per step
+(``benchmarks/step_profile.py``). Compile figures are true compilations: the persistent cache is
+off (``PHYSDSL_CACHE_DIR=off`` unless set).
 
 Steps/s do not depend on the horizon, so each scene and batch size has its own, chosen so the
 whole script fits the budget; ``horizon_steps.*`` lines say which.
@@ -26,6 +33,8 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests" / "physics"))
+# compile figures are compilations, not loads from the persistent cache (``physdsl.cache``)
+os.environ.setdefault("PHYSDSL_CACHE_DIR", "off")
 sys.path.insert(0, str(HERE))
 
 import jax  # noqa: E402
@@ -40,6 +49,8 @@ from physdsl.scene import Body, Shape  # noqa: E402
 from scenes import c, chain, effect, gravity, pendulum, scene  # noqa: E402
 
 import contact  # noqa: E402  (benchmarks/contact.py: the LCP lines and ``timed``)
+import step_profile  # noqa: E402  (benchmarks/step_profile.py: ``--profile``)
+from physdsl.physics import tree  # noqa: E402
 
 DT = 1e-3
 BATCHES = (1, 64, 1024)
@@ -69,39 +80,52 @@ def pend(steps):
 def chain10(steps):
     """10 hinged capsules, semi-implicit Euler on both sides (RK4's four tree-dynamics stages
     take four times as long to compile, which alone would exceed the benchmark's budget)."""
-    s = chain(10, link=0.1, mass=0.1, r=0.01, duration=steps * DT, integrator="semi_implicit_euler")
+    return chain_n(10, steps)
+
+
+def chain_n(n, steps):
+    """n hinged capsules hanging from the world (``chain10``'s links), semi-implicit Euler."""
+    s = chain(n, link=0.1, mass=0.1, r=0.01, duration=steps * DT, integrator="semi_implicit_euler")
     s = s.__class__(**{**s.__dict__, "joints": (s.joints[0].__class__(
         **{**s.joints[0].__dict__, "initial": Ref("th0")}),) + s.joints[1:]})
     inner = ""
-    for k in range(10):
+    for k in range(n):
         inner += (f'<body pos="0 0 {-0.1 if k else 0}"><joint type="hinge" axis="0 1 0"/>'
                   '<geom type="capsule" fromto="0 0 -0.01 0 0 -0.09" size="0.01" mass="0.1"/>')
-    inner += "</body>" * 10
-    xml = f'<mujoco><option timestep="0.001" integrator="Euler"/><worldbody>{inner}</worldbody></mujoco>'
+    inner += "</body>" * n
+    xml = (f'<mujoco><option timestep="0.001" integrator="Euler"/><worldbody>{inner}</worldbody>'
+           '</mujoco>')
     return s, xml, {"th0": 0.3}, "th0"
 
 
 def balls16(steps):
     """16 balls dropped into a box (floor + 4 walls), every pair a contact candidate, compliant
     contact (MuJoCo: its default soft contact)."""
+    return balls_n(16, steps)
+
+
+def balls_n(n, steps):
+    """n balls of 5 cm dropped into a box (floor + 4 walls at +-0.3 m), every pair a contact
+    candidate, compliant contact; 16 to a layer (4 x 4), layers 12 cm apart."""
     walls = [("floor", (0, 0, 1), (0, 0, 0)), ("wx0", (1, 0, 0), (-0.3, 0, 0)),
              ("wx1", (-1, 0, 0), (0.3, 0, 0)), ("wy0", (0, 1, 0), (0, -0.3, 0)),
              ("wy1", (0, -1, 0), (0, 0.3, 0))]
-    bodies = [Body(n, Shape("plane", {"normal": c(nm)}), position=c(p), fixed=True)
-              for n, nm, p in walls]
+    bodies = [Body(nm_, Shape("plane", {"normal": c(nm)}), position=c(p), fixed=True)
+              for nm_, nm, p in walls]
     rng = np.random.default_rng(0)
     names = []
     mj = ""
-    for i in range(16):
-        x, y = (i % 4 - 1.5) * 0.13, (i // 4 - 1.5) * 0.13
-        z = 0.06 + 0.05 * rng.random()  # just above the floor: contacts start within the horizon
+    for i in range(n):
+        k = i % 16
+        x, y = (k % 4 - 1.5) * 0.13, (k // 4 - 1.5) * 0.13
+        z = 0.06 + 0.05 * rng.random() + 0.12 * (i // 16)  # contacts start within the horizon
         names.append(f"b{i}")
         pos = Vec((Const(x), Const(y), Binary("+", Const(z), Ref("dz"))))
         bodies.append(Body(f"b{i}", Shape("sphere", {"radius": Const(0.05)}), mass=Const(0.1),
                            position=pos))
         mj += (f'<body pos="{x} {y} {z}"><freejoint/><geom type="sphere" size="0.05" mass="0.1"/>'
                '</body>')
-    pairs = [(w[0], n) for w in walls for n in names]
+    pairs = [(w[0], b) for w in walls for b in names]
     pairs += [(a, b) for i, a in enumerate(names) for b in names[i + 1:]]
     s = scene(bodies, effects=[gravity()], contact_pairs=pairs, contact_model="compliant",
               dt=DT, duration=steps * DT)
@@ -184,6 +208,53 @@ def bench(name):
     return t_f, np.asarray(fwd(vals))
 
 
+# chain_scaling / contact_scaling: sizes, and the horizon of each rollout timed (steps)
+CHAIN_SIZES, CHAIN_STEPS = (2, 5, 10, 20), 500
+BALL_SIZES, BALL_STEPS = (2, 4, 8, 16, 32), 200
+
+
+def scaling(kind, builder, sizes, steps, recursive=False):
+    """``KIND_scaling.*.N`` lines: our steps/s and MuJoCo's at each size N, their ratio, our
+    compile CPU s; ``recursive``: also the per-body recursive tree algorithms (``tree.py`` off:
+    the path before it) as ``recursive_steps_per_s``; and the growth exponent of the time per
+    step between the smallest and largest N (1: linear)."""
+    per_step = {}
+    for n in sizes:
+        s, xml, vals, _ = builder(n, steps)
+        vals = values_of(vals)
+        paths = [("", tree.TREE_MAX)] + ([("recursive_", -1)] if recursive else [])
+        for label, tmax in paths:
+            tree.TREE_MAX, keep = tmax, tree.TREE_MAX
+            sim = build_simulator(s)
+            f, t_c = compile_cpu_s(jax.jit(lambda v, sim=sim: sim.simulate(v).body_pos), vals)
+            tree.TREE_MAX = keep
+            t = contact.timed(f, vals, repeat=3)
+            per_step[label, n] = t / steps
+            print(f"{kind}_scaling.{label}steps_per_s.{n}: {steps / t:.0f}")
+            print(f"{kind}_scaling.{label}compile_cpu_s.{n}: {t_c:.1f}")
+        rate = mujoco_rate(xml)
+        per_step["mujoco_", n] = 1.0 / rate
+        print(f"{kind}_scaling.mujoco_steps_per_s.{n}: {rate:.0f}")
+        print(f"{kind}_scaling.ours_over_mujoco.{n}: {rate * per_step['', n]:.3f}", flush=True)
+    a, b = sizes[0], sizes[-1]
+    for label in ("", "recursive_", "mujoco_"):
+        if (label, a) in per_step:
+            k = np.log(per_step[label, b] / per_step[label, a]) / np.log(b / a)
+            print(f"{kind}_scaling.{label}growth_exponent: {k:.2f}")
+
+
+def profile():
+    """``--profile``: where one step's time goes (``step_profile``), chains and balls."""
+    cases = [("chain", chain_n, n, 200) for n in CHAIN_SIZES] + \
+            [("balls", balls_n, n, 100) for n in (4, 16, 32)]
+    for kind, builder, n, steps in cases:
+        s, _, vals, _ = builder(n, steps)
+        sim = build_simulator(s)
+        for stage, us in step_profile.profile(sim, values_of(vals)).items():
+            unit = "" if stage == "compile_cpu_s" else "_us_per_step"
+            print(f"profile.{kind}{n}.{stage}{unit}: {us:.2f}", flush=True)
+
+
 def mujoco_rate(xml, steps=5000):
     """mj_step calls per second (best of 3 runs of ``steps`` from the initial state)."""
     m = mujoco.MjModel.from_xml_string(xml)
@@ -230,7 +301,18 @@ def main():
         return
     t0 = time.time()
     print(f"load_avg_1min_start: {os.getloadavg()[0]:.1f}")
+    if "--profile" in sys.argv:
+        profile()
+        print(f"load_avg_1min_end: {os.getloadavg()[0]:.1f}")
+        return
+    if "--scaling" in sys.argv:  # the scaling lines alone
+        scaling("chain", chain_n, CHAIN_SIZES, CHAIN_STEPS, recursive=True)
+        scaling("contact", balls_n, BALL_SIZES, BALL_STEPS)
+        print(f"load_avg_1min_end: {os.getloadavg()[0]:.1f}")
+        return
     results = {name: bench(name) for name in SCENES}
+    scaling("chain", chain_n, CHAIN_SIZES, CHAIN_STEPS, recursive=True)
+    scaling("contact", balls_n, BALL_SIZES, BALL_STEPS)
     float32_lines(results)
     contact.main()
     print(f"load_avg_1min_end: {os.getloadavg()[0]:.1f}")

@@ -16,6 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import contact as cm
+from .effects.base import Load
 from .kinematics import Kin
 from .rows import place, take
 from .spatial import mtv, mv, normalize, skew
@@ -33,6 +34,8 @@ class Contacts(NamedTuple):
     e: jnp.ndarray  # (C,)
     inv_mass: jnp.ndarray | None = None  # (C,) Jn M^-1 Jn^T in closed form (free bodies only)
     valid: jnp.ndarray | None = None  # (C,) bool, candidates that exist whatever their gap
+    point_a: jnp.ndarray | None = None  # (C, 3) world contact point on a
+    point_b: jnp.ndarray | None = None  # (C, 3) world contact point on b
 
 
 SLIP_ALIGN = 1e-3  # m/s: slip speeds well above this turn the friction pyramid onto the slip
@@ -77,6 +80,7 @@ def detect_all(model: PhysicsModel, prm: dict, kin: Kin, v=None) -> Contacts:
     e = jnp.ones(C)
     free = model.free_bodies is not None
     inv_m = jnp.zeros(C) if free else None
+    pt_a, pt_b = jnp.zeros((C, 3)), jnp.zeros((C, 3))
     groups: dict = {}
     for pair in model.pairs:
         groups.setdefault((pair.kind_a, pair.kind_b), []).append(pair)
@@ -90,6 +94,7 @@ def detect_all(model: PhysicsModel, prm: dict, kin: Kin, v=None) -> Contacts:
         Jrel = _point_jac(kin, ia, cp.point_a) - _point_jac(kin, ib, cp.point_b)
         dist = dist.at[rows].set(cp.dist)
         normal = normal.at[rows].set(cp.normal)
+        pt_a, pt_b = pt_a.at[rows].set(cp.point_a), pt_b.at[rows].set(cp.point_b)
         valid = valid.at[rows].set(cp.active)  # no margin given: active means valid here
         J = J.at[rows].set(Jrel)
         if free:
@@ -114,7 +119,7 @@ def detect_all(model: PhysicsModel, prm: dict, kin: Kin, v=None) -> Contacts:
         T = jnp.zeros((C, 0, 3), normal.dtype)
     Jt = jnp.einsum("cfk,ckn->cfn", T, J)
     return Contacts(dist, normal, valid & (dist < cm.contact_margin), J, Jn, Jt, mu, e, inv_m,
-                    valid)
+                    valid, pt_a, pt_b)
 
 
 def closing_within(con: Contacts, v_free, h) -> Contacts:
@@ -156,6 +161,36 @@ def compliant_tau(model: PhysicsModel, con: Contacts, M, v):
     F = fn[:, None] * con.normal + ft  # world force on a (and -F on b) at the contact
     tau = jnp.einsum("ckn,ck->n", con.J, F)
     return tau, fn
+
+
+def compliant_load(model: PhysicsModel, kin: Kin, con: Contacts):
+    """Free-body scenes: the compliant contact forces as a Load (each contact's force and its
+    moment about the centre of mass, on a, and their opposite on b) and the normal force per
+    row, from the bodies' own velocities: no (C, 3, nv) contact Jacobian, whose size grows as
+    pairs x dofs (the same forces as ``compliant_tau``, to rounding)."""
+    ra, rb = _row_bodies(model)
+    ca, cb = kin.com[ra], kin.com[rb]
+    vel = lambda r, p, c: kin.vcom[r] + jnp.cross(kin.ang[r], p - c)  # noqa: E731
+    vrel = vel(ra, con.point_a, ca) - vel(rb, con.point_b, cb)
+    vn = jnp.sum(vrel * con.normal, -1)
+    vt = vrel - vn[:, None] * con.normal
+    meff = 1.0 / jnp.where(con.inv_mass > 0, con.inv_mass, 1.0)
+    fn, ft = cm.compliant_forces(con.dist, vn, vt, con.mu, con.e, meff)
+    fn = jnp.where(con.active, fn, 0.0)
+    F = fn[:, None] * con.normal + jnp.where(con.active[:, None], ft, 0.0)
+    B = model.nbody
+    force = jnp.zeros((B, 3), F.dtype).at[ra].add(F).at[rb].add(-F)
+    torque = (jnp.zeros((B, 3), F.dtype).at[ra].add(jnp.cross(con.point_a - ca, F))
+              .at[rb].add(-jnp.cross(con.point_b - cb, F)))
+    return Load(force, torque, jnp.zeros(model.nv, F.dtype)), fn
+
+
+def _row_bodies(model: PhysicsModel):
+    """(C,) static body a and body b of each contact row."""
+    ra, rb = np.zeros(model.ncon, int), np.zeros(model.ncon, int)
+    for p in model.pairs:
+        ra[list(p.rows)], rb[list(p.rows)] = p.a, p.b
+    return ra, rb
 
 
 def lcp_velocity(model: PhysicsModel, con: Contacts, M, v, v_free, h):

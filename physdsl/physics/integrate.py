@@ -1,7 +1,8 @@
 """Time stepping: one pure ``step(model, prm, state, t, h)`` by semi-implicit Euler or RK4.
 
 Effects give one summed Load per evaluation. Scenes of free bodies use the Newton-Euler fast
-path (``free.py``); others tree kinematics and joint-space dynamics (``dynamics.py``). The LCP contact model
+path (``free.py``); jointed trees the vectorised kinematics and dynamics of ``tree.py`` (the
+recursive ones of ``kinematics.py``/``dynamics.py`` above ``tree.TREE_MAX`` dofs). The LCP contact model
 needs the mass matrix (CRBA, or block-diagonal for free bodies) and runs only when some
 candidate is within the contact margin or closes its gap within the step (``lax.cond``; under
 ``vmap`` both branches run).
@@ -20,16 +21,13 @@ import jax
 import jax.numpy as jnp
 
 from . import contact_stage as cs
+from . import tree
 from .contact_models import CONTACT_MODELS, contact_model
-from .dynamics import forward_dynamics, generalized_forces, joint_space_accel, mass_matrix
+from .dynamics import forward_dynamics, generalized_forces, mass_matrix
 from .effects import EFFECTS, Ctx, zero_load
 from .free import free_accel, free_kinematics, free_mass_matrix
 from .kinematics import forward_kinematics, integrate_q
 from .structure import PhysicsModel
-
-
-# trees with at most this many dofs: one Cholesky solve; larger: the articulated-body algorithm
-JOINT_SPACE_MAX = 24
 
 
 class State(NamedTuple):
@@ -64,6 +62,8 @@ def kinematics(model: PhysicsModel, prm: dict, q, v, with_jac: bool = False):
     """Kinematics by the free-body fast path when it applies, else over the tree."""
     if model.free_bodies is not None:
         return free_kinematics(model, prm, q, v, with_jac)
+    if tree.applies(model):
+        return tree.tree_kinematics(model, prm, q, v)
     return forward_kinematics(model, prm, q, v)
 
 
@@ -72,10 +72,10 @@ def accel(model: PhysicsModel, prm: dict, kin, load, tau=None):
     if model.free_bodies is not None:
         return free_accel(model, prm, kin, load.force, load.torque,
                           load.joint if tau is None else load.joint + tau)
+    if tree.applies(model):
+        return tree.tree_accel(model, kin, load, tau)
     gen = generalized_forces(model, kin, load)
     gen = gen if tau is None else gen + tau
-    if model.nv <= JOINT_SPACE_MAX:
-        return joint_space_accel(model, kin, gen)
     return forward_dynamics(model, kin, gen)
 
 
@@ -83,6 +83,8 @@ def joint_mass_matrix(model: PhysicsModel, prm: dict, kin):
     """M (nv, nv) at the state of ``kin``."""
     if model.free_bodies is not None:
         return free_mass_matrix(model, prm, kin)
+    if tree.applies(model):
+        return tree.tree_mass_matrix(model, kin)
     return mass_matrix(model, kin)
 
 
@@ -156,9 +158,12 @@ def _compliant_step(model, prm, state, t, h, forward_only=False):
 
     def contact(o):
         prm, q, v, kin, con, load = o
-        M = None if con.inv_mass is not None else joint_mass_matrix(model, prm, kin)
-        tau, cf = cs.compliant_tau(model, con, M, v)
-        v_next = v + h * accel(model, prm, kin, load, tau)
+        if con.inv_mass is not None:  # free bodies: forces on the bodies, no contact Jacobian
+            extra, cf = cs.compliant_load(model, kin, con)
+            v_next = v + h * accel(model, prm, kin, load + extra)
+        else:
+            tau, cf = cs.compliant_tau(model, con, joint_mass_matrix(model, prm, kin), v)
+            v_next = v + h * accel(model, prm, kin, load, tau)
         return State(integrate_q(model, q, v_next, h), v_next, cf, con.normal)
 
     operand = (prm, q, v, kin, con, load)

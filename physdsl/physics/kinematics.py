@@ -10,9 +10,10 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from .structure import PhysicsModel
-from .spatial import (cross_motion, mm, mv, normalize, quat_axis_angle, quat_conj, quat_integrate,
+from .spatial import (cross_motion, mm, mv, normalize, quat_axis_angle, quat_conj, quat_exp,
                       quat_mul, quat_to_mat, skew, spatial_inertia)
 
 
@@ -138,17 +139,30 @@ def point_velocity(kin: Kin, body: int, point):
 
 
 def integrate_q(model: PhysicsModel, q, v, h):
-    """q advanced by velocity v over time h (quaternions on the manifold, renormalised)."""
-    parts = []
-    for i in model.order:
-        tj = model.joints[i]
-        qi = q[tj.qadr:tj.qadr + tj.nq]
-        vi = v[tj.vadr:tj.vadr + tj.nv]
-        if tj.kind in ("hinge", "slider"):
-            parts.append(qi + h * vi)
-        elif tj.kind == "ball":
-            parts.append(quat_integrate(qi, vi, h))
-        elif tj.kind == "free":
-            parts.append(qi[:3] + h * vi[:3])
-            parts.append(quat_integrate(qi[3:], vi[3:], h))
-    return jnp.concatenate(parts) if parts else q
+    """q advanced by velocity v over time h, every joint at once: hinge and slider coordinates
+    by q + h v, quaternions (ball, a free joint's rotation) on the manifold, renormalised."""
+    lin_q, lin_v, quat_q, quat_v = _position_tables(model)
+    if not len(quat_q) and np.array_equal(lin_q, np.arange(q.shape[0])):
+        return q + h * (v if np.array_equal(lin_v, np.arange(v.shape[0])) else v[lin_v])
+    out = q.at[lin_q].add(h * v[lin_v]) if len(lin_q) else q
+    if len(quat_q):
+        qq = q[quat_q]
+        out = out.at[quat_q].set(normalize(quat_mul(qq, quat_exp(v[quat_v] * h))))
+    return out
+
+
+def _position_tables(model: PhysicsModel):
+    """Static indices: q and v of every coordinate advanced linearly; (n, 4) q and (n, 3) v of
+    every quaternion."""
+    lin_q, lin_v, quat_q, quat_v = [], [], [], []
+    for j in model.joints:
+        if j.kind in ("hinge", "slider"):
+            lin_q.append(j.qadr), lin_v.append(j.vadr)
+        elif j.kind == "free":
+            lin_q += range(j.qadr, j.qadr + 3)
+            lin_v += range(j.vadr, j.vadr + 3)
+            quat_q.append(range(j.qadr + 3, j.qadr + 7)), quat_v.append(range(j.vadr + 3, j.vadr + 6))
+        elif j.kind == "ball":
+            quat_q.append(range(j.qadr, j.qadr + 4)), quat_v.append(range(j.vadr, j.vadr + 3))
+    return (np.array(lin_q, int), np.array(lin_v, int), np.array(quat_q, int).reshape(-1, 4),
+            np.array(quat_v, int).reshape(-1, 3))

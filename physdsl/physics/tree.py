@@ -1,0 +1,222 @@
+"""Trees of hinges and sliders (and welds) without a Python loop per body: kinematics and dynamics
+as a fixed handful of vectorised array operations, whatever the number of bodies.
+
+Each body's motion D_i = D_parent o J_i(q_i) is composed over its ancestors by pointer jumping
+(ceil(log2 depth) rounds of one batched composition each). World joint axes and anchors follow
+from D_i alone (a hinge's axis and anchor are fixed by its own motion), spatial velocities,
+bias accelerations and Jacobians from the static ancestor matrix A (A[i, j] = 1 where j is i or
+an ancestor of i) by one product each, the joint-space mass matrix from the composite inertias
+A^T I (CRBA: M[j, k] = S_j . Ic_k S_k where j's body is an ancestor of k's), forces on the
+dofs from the subtree sums A^T f. On XLA CPU a step's cost is dominated by its number of kernels,
+not its flops, so this beats the recursive algorithms (Python loops over the static tree, a
+kernel or more per body) at the sizes of scenes (measured: ``benchmarks/physics.py``).
+"""
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+from jax.scipy.linalg import cho_factor, cho_solve
+
+from .kinematics import Kin
+from .spatial import (cross_force, mm, mv, normalize, quat_axis_angle, quat_mul,
+                      quat_to_mat, spatial_inertia)
+from .structure import PhysicsModel
+
+# above this many dofs the articulated-body algorithm (``dynamics.forward_dynamics``): the
+# Cholesky solve here is O(nv^3)
+TREE_MAX = 64
+
+
+def applies(model: PhysicsModel) -> bool:
+    """A jointed tree small enough for the vectorised path (free-body scenes have their own)."""
+    return model.nbody > 0 and model.nv <= TREE_MAX
+
+
+def _tables(model: PhysicsModel):
+    """Static index tables: parent (B,) with -1 -> B (a zero row), ancestor matrix A (B, B),
+    body and column of each dof (nv,), each body's dof per column (B, K) (nv: none), jumping
+    rounds (per round, each body's ancestor that many levels up, -1: none)."""
+    B, nv = model.nbody, model.nv
+    parent = np.array([j.parent for j in model.joints])
+    A = np.eye(B)
+    for i in model.order:
+        if parent[i] >= 0:
+            A[i] = np.maximum(A[i], A[parent[i]])
+    K = max([j.nv for j in model.joints] + [1])
+    dof_body, dof_col = np.zeros(nv, int), np.zeros(nv, int)
+    vidx = np.full((B, K), nv)
+    for j in model.joints:
+        dof_body[j.vadr:j.vadr + j.nv] = j.body
+        dof_col[j.vadr:j.vadr + j.nv] = np.arange(j.nv)
+        vidx[j.body, :j.nv] = np.arange(j.vadr, j.vadr + j.nv)
+    rounds, anc = [], parent.copy()
+    while (anc >= 0).any():
+        rounds.append(anc.copy())
+        anc = np.where(anc >= 0, anc[np.maximum(anc, 0)], -1)
+    return np.where(parent >= 0, parent, B), A, dof_body, dof_col, vidx, rounds
+
+
+def _compose(outer, inner):
+    """(q, t) of the rigid motion ``outer`` o ``inner`` (batched; unit quaternions)."""
+    qa, ta = outer
+    qb, tb = inner
+    return quat_mul(qa, qb), mv(_rot(qa), tb) + ta
+
+
+def _rot(q):
+    """Rotation matrix of a unit quaternion (no renormalisation: one elementwise kernel)."""
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    return jnp.stack([
+        jnp.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        jnp.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+        jnp.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+    ], -2)
+
+
+def _mask(model: PhysicsModel, *kinds):
+    return np.array([j.kind in kinds for j in model.joints])
+
+
+def _joint_motions(model: PhysicsModel, prm: dict, q):
+    """Each body's joint motion J_i(q_i) (a free joint: its whole motion) as (quaternion (B, 4),
+    translation (B, 3))."""
+    nq = model.nq
+    qx = jnp.concatenate([q, jnp.zeros(1, q.dtype)])
+    one = np.array([j.qadr if j.kind in ("hinge", "slider") else nq for j in model.joints])
+    quat_at = {"ball": 0, "free": 3}
+    q4 = np.array([[j.qadr + quat_at[j.kind] + k if j.kind in quat_at else nq for k in range(4)]
+                   for j in model.joints])
+    x3 = np.array([[j.qadr + k if j.kind == "free" else nq for k in range(3)]
+                   for j in model.joints])
+    hinge, slider = _mask(model, "hinge")[:, None], _mask(model, "slider")[:, None]
+    ball, free = _mask(model, "ball")[:, None], _mask(model, "free")[:, None]
+    a, p, ref_q = prm["axis"], prm["anchor"], prm["ref_quat"]
+    th = qx[one]
+    ident = jnp.zeros_like(ref_q).at[:, 0].set(1.0)
+    qb = normalize(jnp.where(ball | free, qx[q4], ident))
+    qJ = jnp.where(hinge, quat_axis_angle(a, th), jnp.where(ball, qb, ident))
+    qJ = jnp.where(free, quat_mul(qb, ref_q * jnp.array([1.0, -1.0, -1.0, -1.0], q.dtype)), qJ)
+    RJ = quat_to_mat(qJ)
+    tJ = jnp.where(hinge | ball, p - mv(RJ, p), 0.0) + jnp.where(slider, a * th[:, None], 0.0)
+    tJ = jnp.where(free, qx[x3] - mv(RJ, prm["ref_pos"]), tJ)
+    return qJ, tJ, qb, qx[x3]
+
+
+def _subspaces(model: PhysicsModel, prm: dict, qD, tD, qb, x):
+    """Motion subspaces (B, 6, K) in the world at the origin, and which columns turn with the
+    body itself (a free joint's rotation) rather than with the parent."""
+    K = max([j.nv for j in model.joints] + [1])
+    R = quat_to_mat(qD)
+    a_w, p_w = mv(R, prm["axis"]), mv(R, prm["anchor"]) + tD  # fixed by the joint's own motion
+    z3 = jnp.zeros_like(a_w)
+    hinge = jnp.concatenate([a_w, jnp.cross(p_w, a_w)], -1)
+    slider = jnp.concatenate([z3, a_w], -1)
+    E = R  # a ball joint's columns: the body's (D's) axes
+    ball = jnp.concatenate([E, jnp.cross(p_w[:, :, None], E, axis=1)], 1)  # (B, 6, 3)
+    Rb = quat_to_mat(qb)
+    eye = jnp.broadcast_to(jnp.eye(3, dtype=R.dtype), R.shape)
+    free_t = jnp.concatenate([jnp.zeros_like(eye), eye], 1)
+    free_r = jnp.concatenate([Rb, jnp.cross(x[:, :, None], Rb, axis=1)], 1)
+    cols = []
+    for k in range(K):
+        c = jnp.where(_mask(model, "hinge")[:, None], hinge, 0.0) if k == 0 else 0.0
+        c = c + (jnp.where(_mask(model, "slider")[:, None], slider, 0.0) if k == 0 else 0.0)
+        if k < 3:
+            c = c + jnp.where(_mask(model, "ball")[:, None], ball[:, :, k], 0.0)
+        if K == 6:
+            fc = free_t[:, :, k] if k < 3 else free_r[:, :, k - 3]
+            c = c + jnp.where(_mask(model, "free")[:, None], fc, 0.0)
+        cols.append(jnp.broadcast_to(c, (model.nbody, 6)))
+    own = np.array([[j.kind == "free" and k >= 3 for k in range(K)] for j in model.joints])
+    return jnp.stack(cols, -1), own
+
+
+def tree_kinematics(model: PhysicsModel, prm: dict, q, v) -> Kin:
+    """Poses, spatial velocities, Jacobians and inertias of every body at (q, v), vectorised."""
+    B = model.nbody
+    par, A, dof_body, dof_col, vidx, rounds = _tables(model)
+    qD, tD, qb, x = _joint_motions(model, prm, q)
+    X = jnp.concatenate([qD, tD], -1)
+    for anc in rounds:  # D_i <- D_anc o D_i, anc jumping 1, 2, 4, ... levels up
+        P = X[np.maximum(anc, 0)]  # one gather per round
+        qc, tc = _compose((P[:, :4], P[:, 4:]), (X[:, :4], X[:, 4:]))
+        X = jnp.where((anc >= 0)[:, None], jnp.concatenate([qc, tc], -1), X)
+    qD, tD = X[:, :4], X[:, 4:]
+    S, own = _subspaces(model, prm, qD, tD, qb, x)
+    quat = normalize(quat_mul(qD, prm["ref_quat"]))
+    pos = mv(quat_to_mat(qD), prm["ref_pos"]) + tD
+    vb = jnp.concatenate([v, jnp.zeros(1, q.dtype)])[vidx]  # (B, K)
+    Sv_par = jnp.sum(S * jnp.where(own, 0.0, vb)[:, None, :], -1)
+    Sv_own = jnp.sum(S * jnp.where(own, vb, 0.0)[:, None, :], -1)
+    vel = A @ (Sv_par + Sv_own)
+    vel_p = jnp.concatenate([vel, jnp.zeros((1, 6), vel.dtype)])[par]
+    c = _cross_motion(vel_p, Sv_par) + _cross_motion(vel, Sv_own)
+    acc0 = A @ c
+    S_dof = S[dof_body, :, dof_col]  # (nv, 6)
+    jac = A[:, None, dof_body] * S_dof.T[None]  # (B, 6, nv)
+    rot = quat_to_mat(quat)
+    com = pos + mv(rot, prm["com"])
+    I_world = mm(mm(rot, prm["inertia"]), jnp.swapaxes(rot, -1, -2))
+    inertia6 = spatial_inertia(prm["mass"], I_world, com)
+    ang = vel[:, :3]
+    vcom = vel[:, 3:] + jnp.cross(ang, com)
+    S_list = tuple(S[i, :, :model.joints[i].nv] for i in range(B))
+    return Kin(pos, quat, rot, com, ang, vcom, q, v, vel, jac, c, inertia6, S_list, acc0)
+
+
+def _cross_motion(v, m):
+    """Spatial cross product v x m of motion vectors, batched (..., 6)."""
+    w, vo = v[..., :3], v[..., 3:]
+    return jnp.concatenate([jnp.cross(w, m[..., :3]),
+                            jnp.cross(w, m[..., 3:]) + jnp.cross(vo, m[..., :3])], -1)
+
+
+def dof_forces(model: PhysicsModel, kin: Kin, f):
+    """Generalized forces of spatial forces f (B, 6) at the origin on each body: S_j . (A^T f)."""
+    _, A, dof_body, _, _, _ = _tables(model)
+    sub = A.T @ f  # (B, 6) each body's subtree total
+    S = _dof_columns(model, kin)
+    return jnp.sum(S * sub[dof_body], -1)
+
+
+def tree_mass_matrix(model: PhysicsModel, kin: Kin):
+    """M (nv, nv) by composite inertias: M[j, k] = S_j . (Ic_k S_k) where j's body is k's or an
+    ancestor of it, and its transpose."""
+    _, A, dof_body, _, _, _ = _tables(model)
+    Ic = jnp.tensordot(A.T, kin.inertia, 1)  # (B, 6, 6)
+    S = _dof_columns(model, kin)
+    F = mv(Ic[dof_body], S)  # (nv, 6)
+    M1 = S @ F.T  # M1[j, k] = S_j . F_k
+    up = A[dof_body][:, dof_body].T > 0  # up[j, k]: j's body is k's or an ancestor of k's
+    return jnp.where(up, M1, jnp.where(up.T, M1.T, 0.0))
+
+
+def tree_bias(model: PhysicsModel, kin: Kin):
+    """C(q, v) v: the dof forces of each body's inertial force at zero joint acceleration."""
+    return dof_forces(model, kin, _inertial(kin))
+
+
+def _inertial(kin: Kin):
+    """(B, 6) each body's inertial force at zero joint acceleration: I a0 + v x* I v."""
+    I, vel = kin.inertia, kin.vel
+    return mv(I, kin.acc0) + cross_force(vel, mv(I, vel))
+
+
+def tree_accel(model: PhysicsModel, kin: Kin, load, tau=None):
+    """qdd = M^-1 (tau + J^T f - bias) by one Cholesky solve (the applied and inertial forces
+    summed over subtrees in one product)."""
+    f = jnp.concatenate([load.torque + jnp.cross(kin.com, load.force), load.force], -1)
+    gen = load.joint + dof_forces(model, kin, f - _inertial(kin))
+    if tau is not None:
+        gen = gen + tau
+    M = tree_mass_matrix(model, kin)
+    if model.nv == 1:
+        return gen / M[0]
+    return cho_solve(cho_factor(M), gen)
+
+
+def _dof_columns(model: PhysicsModel, kin: Kin):
+    """(nv, 6) each dof's own motion column (read off the Jacobian's diagonal blocks)."""
+    _, _, dof_body, _, _, _ = _tables(model)
+    return kin.jac[dof_body, :, np.arange(model.nv)]
+
