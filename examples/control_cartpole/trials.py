@@ -61,6 +61,8 @@ def _upright_since(run: mpc.MpcResult, tolerance: float) -> float:
     """The time from which the pole stays within ``tolerance`` of upright to the run's end."""
     angle = run.states[:, run.joints.index("pole_hinge")]
     miss = np.abs(np.mod(angle, 2 * np.pi) - np.pi) > tolerance
+    if miss[-1]:
+        return float("inf")  # not upright at the end
     return float(run.times[np.flatnonzero(miss)[-1] + 1]) if miss.any() else 0.0
 
 
