@@ -91,6 +91,13 @@ def order_by_evidence(confirmed: list[Ranked]) -> list[Ranked]:
     return tied + rest
 
 
+def _elpd_tied(a: Ranked, b: Ranked) -> bool:
+    """Whether two confirmed refits predict alike by PSIS-LOO (ΔELPD within ``tie_margin``)."""
+    if a.delta_elpd is None or b.delta_elpd is None:
+        return False
+    return abs(a.delta_elpd - b.delta_elpd) < tie_margin(a.elpd_points, b.elpd_points)
+
+
 def evidence_ties(winner: Ranked, confirmed: list[Ranked]) -> list[Ranked]:
     """Confirmed candidates the evidence cannot separate from the winner: ΔELPD and ΔLFO both
     within ``tie_margin`` (e.g. linear and quadratic drag on a throw whose speed barely
@@ -103,16 +110,18 @@ def evidence_ties(winner: Ranked, confirmed: list[Ranked]) -> list[Ranked]:
 
 
 def plausible_first(winner: Ranked, ranked: list[Ranked], physics: list[dict]):
-    """(winner, ranked): where the evidence ties the winner with a rival and physics
-    (``physical_scale.notes``) finds the winner's fitted strength implausible but the rival's
-    plausible (linear drag at 10⁴ × Stokes against quadratic drag with C_d 0.3), the rival
-    wins; the tie stays recorded. Judgements are keyed by their ``target`` (a body for drag, a
-    joint for joint laws, a pair for contact friction)."""
+    """(winner, ranked): where a confirmed rival predicts as well as the winner (ΔELPD within
+    the tie margin; ΔLFO may differ: one split of the recording into past and future) and
+    physics (``physical_scale.notes``) finds the winner's fitted strength implausible but the
+    rival's plausible (linear drag at 10³ × Stokes against quadratic drag with C_d 0.24), the
+    rival wins; the tie stays recorded. Judgements are keyed by their ``target`` (a body for
+    drag, a joint for joint laws, a pair for contact friction)."""
     judged = {(j["effect"], j["target"]): j["plausible"] for j in physics}
     if judged.get((winner.effect, winner.target), True):
         return winner, ranked
-    rival = next((r for r in ranked if r.tied_with == winner.key
-                  and judged.get((r.effect, r.target)) is True), None)
+    rival = next((r for r in ranked if r is not winner and r.confirmed
+                  and judged.get((r.effect, r.target)) is True
+                  and (r.tied_with == winner.key or _elpd_tied(winner, r))), None)
     if rival is None:
         return winner, ranked
     for r in ranked:

@@ -111,3 +111,22 @@ def test_a_tie_of_joint_laws_goes_to_the_physically_plausible_one():
     physics[0] = ps.judge_joint(scene, "joint_damping", "hinge", 0.035, values)
     damping, friction = _tied("joint_damping"), _tied("joint_friction", "joint_damping@hinge")
     assert plausible_first(damping, [damping, friction], physics)[0] is damping
+
+
+def test_an_implausible_winner_yields_to_a_plausible_law_that_predicts_as_well():
+    """two_effects_throw, round 1 (measured): linear drag at 10³ × Stokes led by ΔLFO (+215 vs
+    +188) while ΔELPD tied (+46.9 vs +47.2); quadratic drag at C_d 0.24 is named instead. A
+    rival that predicts clearly worse (ΔELPD beyond the margin) does not take over."""
+    linear = Ranked(rank=1, kind="effect", effect="linear_drag", target="bob", statistic=100.0,
+                    p_value=0.0, dof=1, confirmed=True, delta_elpd=46.9, delta_lfo=215.2)
+    quad = Ranked(rank=2, kind="effect", effect="quadratic_drag", target="bob", statistic=90.0,
+                  p_value=0.0, dof=1, confirmed=True, delta_elpd=47.2, delta_lfo=188.1)
+    physics = [{"effect": "linear_drag", "target": "bob", "plausible": False},
+               {"effect": "quadratic_drag", "target": "bob", "plausible": True}]
+    winner, ranked = plausible_first(linear, [linear, quad], physics)
+    assert winner is quad and ranked == [quad, linear] and linear.tied_with == "quadratic_drag@bob"
+    far = Ranked(rank=2, kind="effect", effect="quadratic_drag", target="bob", statistic=90.0,
+                 p_value=0.0, dof=1, confirmed=True, delta_elpd=30.0, delta_lfo=188.1)
+    lin2 = Ranked(rank=1, kind="effect", effect="linear_drag", target="bob", statistic=100.0,
+                  p_value=0.0, dof=1, confirmed=True, delta_elpd=46.9, delta_lfo=215.2)
+    assert plausible_first(lin2, [lin2, far], physics)[0] is lin2
