@@ -42,10 +42,10 @@ def interval_figures(tmp: Path) -> None:
     (lo, hi), idata = drag_fit(EXAMPLE / "scene.phys")
     wall = time.perf_counter() - t0
     med = float(np.median(idata.posterior["quadratic_drag@ball.coefficient"].values))
-    print(f"pooled_drag: {med:.5f} [{lo:.5f}, {hi:.5f}] kg/m (20 throws, {wall:.0f} s wall)")
+    print(f"pooled_drag: {med:.6g} [{lo:.6g}, {hi:.6g}] kg/m (20 throws, {wall:.0f} s wall)")
     for key, name in (("drag", "09"), ("drag_vs_fastest", "19")):
         (slo, shi), _ = drag_fit(single(tmp, name))
-        print(f"single_drag.{name}: [{slo:.5f}, {shi:.5f}] kg/m")
+        print(f"single_drag.{name}: [{slo:.6g}, {shi:.6g}] kg/m")
         print(f"pooled_interval_ratio.{key}: {(shi - slo) / (hi - lo):.1f}")
 
 

@@ -27,7 +27,10 @@ def throws(tmp: Path, picks, max_t: float | None = None) -> Path:
 
 
 def single(tmp: Path, name: str) -> Path:
-    """The example's scene fitted to throw ``name`` alone, as a plain scene (no experiments)."""
+    """The example's scene fitted to throw ``name`` alone, as a plain scene (no experiments);
+    the throw's data are copied in (whole) unless ``tmp`` holds them already."""
+    if not (tmp / "throws" / name / "trajectory.csv").exists():
+        throws(tmp, [name])
     text = (EXAMPLE / "scene.phys").read_text()
     text = re.sub(r"\n\s*experiments [^\n]*", "", text).replace("per_experiment ", "")
     text = text.replace('from "trajectory.csv"', f'from "throws/{name}/trajectory.csv"')
