@@ -73,8 +73,8 @@ class InfoDesign:
                          f"random {self.random_energy:.4g})")
         before, after, rnd = self.widths("before"), self.widths("after"), self.widths("random")
         for n in self.before:
-            u = self.units.get(n) or ""
-            lines.append(f"{n}: 90% interval width {before[n]:.4g} -> {after[n]:.4g} {u} "
+            u = "" if self.units.get(n) in (None, "1") else f" {self.units[n]}"
+            lines.append(f"{n}: 90% interval width {before[n]:.4g} -> {after[n]:.4g}{u} "
                          f"({before[n] / after[n]:.3g}x narrower; random: {rnd[n]:.4g})")
         w = self.worst()
         lines.append(f"worse-determined: {w}; the chosen excitation leaves it {self.ratio(w):.3g}x "
