@@ -21,10 +21,11 @@ def declaration(kind: str, terms, priors: dict | None = None, center=None,
     lines = [f"# {note}" if note else "# a law distilled by physdsl.discover: outside the library",
              f"effect_type {NAME} on {on} {{",
              f"  doc: \"Distilled law (outside the library): {lhs} = {words}\""]
-    for t in terms:
+    for i, t in enumerate(terms):  # the first term is the law's strength (add-effect's)
         unit = coefficient_unit(TERMS[t], kind)
         mean, sd = (priors or {}).get(t, (0.0, 1.0))
-        lines.append(f"  param {t}: {unit} ~ normal({_num(mean)} {unit}, {_num(sd)} {unit}) off 0")
+        lines.append(f"  param {t}: {unit} ~ normal({_num(mean)} {unit}, {_num(sd)} {unit}) off 0"
+                     + (" strength" if i == 0 else ""))
     if kind == "body" and any(t.startswith("d") for t in terms):
         c = center if center is not None else (0.0, 0.0, 0.0)
         lines.append(f"  param center: vector m = ({', '.join(_num(x) for x in c)}) m")

@@ -64,9 +64,24 @@ def test_a_law_with_unknown_coefficients_has_units_priors_and_an_off_value():
     decl = scene.effect_library["distilled_law"]
     by = {p.name: p for p in decl.params}
     assert by["v_sqrt_speed"].off == 0.0 and by["d_inv2"].off == 0.0
+    assert decl.strength.name == "v_sqrt_speed"  # what add-effect gives an unknown
     units = {u.name: u.unit for u in scene.unknowns}
     assert units == {"distilled_law@ball.v_sqrt_speed": "kg/s",
                      "distilled_law@ball.d_inv2": "m^3*kg/s^2"}  # N s/m and N m^2 in SI
     np.testing.assert_allclose(np.asarray(scene.effects[-1].params["center"].array()), (0, 0, -1))
     assert physdsl.format_source(physdsl.format_source(text)) == physdsl.format_source(text)
     assert set(TERMS) >= set(by) - {"center"}
+
+
+def test_a_law_file_is_ready_for_add_effect(tmp_path):
+    """law.phys (the declaration alone) imported by a scene: add-effect puts the law on the
+    body, its first term an unknown with the law's prior."""
+    from physdsl.discover.phys_text import declaration
+
+    (tmp_path / "law.phys").write_text(declaration("body", ["v_sqrt_speed"],
+                                                   {"v_sqrt_speed": (0.0, 0.06)}))
+    (tmp_path / "scene.phys").write_text('import "law.phys"\n' + BALL)
+    scene = physdsl.load(tmp_path / "scene.phys")
+    new = physdsl.add_effect(scene, "distilled_law", "ball")
+    assert "effect distilled_law on ball" in new.source
+    assert [u.name for u in new.unknowns] == ["distilled_law@ball.v_sqrt_speed"]
