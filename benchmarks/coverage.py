@@ -99,7 +99,8 @@ def run_case(name: str, samples: int) -> dict:
     block = json.loads(attrs.get("block_check", "{}"))
     return {"rows": rows, "rms": (sq / max(n, 1)) ** 0.5, "wall_s": wall,
             "discrepancies": attrs.get("discrepancies", ""),
-            "block_p": block.get("p_value"), "block_factors": block.get("factors")}
+            "block_p": block.get("p_value"), "block_factors": block.get("factors"),
+            "block_note": block.get("note", "")}
 
 
 def main() -> None:
@@ -127,6 +128,8 @@ def main() -> None:
             print(f"case.{name}: timed out after {args.timeout:.0f} s", flush=True)
             continue
         results[name] = out
+        if out.get("block_note"):
+            print(f"block_check.{name}: {out['block_note']}", flush=True)
         if out.get("block_p") is not None:
             print(f"block_check.{name}: p {out['block_p']:.3g}, factors "
                   f"{' '.join(f'{f:.2f}' for f in out['block_factors'])}", flush=True)

@@ -209,10 +209,9 @@ def add_robust(idata, model, problem, flat: np.ndarray, constrained: dict, shown
             for u in model.unknown_names}
     found = [fit for fit in fits if fit["kind"] in KERNELS]
     posterior_data.add_group(idata, GROUP, post, {
-        "method": METHOD if block is None else METHOD + " + " + BLOCK_METHOD,
+        "method": METHOD + (" + " + BLOCK_METHOD if block and "p_value" in block else ""),
         "max_widening": float(max(f.max(initial=1.0), widest.max(initial=1.0))),
-        "block_check": json.dumps(block if block is not None else
-                                  {"note": "not run" if shown != "robust" else "not possible"}),
+        "block_check": json.dumps(block if block is not None else {"note": "not run"}),
         "residual_models": json.dumps(fits),
         "discrepancies": f"{len(found)} of {len(fits)} residual components"})
     idata.attrs["intervals"] = shown
@@ -222,14 +221,15 @@ def add_robust(idata, model, problem, flat: np.ndarray, constrained: dict, shown
 def _block_check(problem, X, keep, Xr, m) -> dict | None:
     """``block_check``: where its refits on time blocks scatter more than the sandwich's
     intervals explain, widen the draws ``Xr`` (in place) per coordinate by the measured
-    excess over them (no double count). Its figures, or None."""
+    excess over them (no double count). Its figures, or a note saying why there are none."""
     have = Xr[:, keep].std(axis=0) / X[:, keep].std(axis=0)
     try:
         found = block_factors(problem, full_mode(problem, X), keep, scale=have)
-    except (np.linalg.LinAlgError, ValueError, FloatingPointError):  # a check, not the fit
-        found = None
+    except (np.linalg.LinAlgError, ValueError, FloatingPointError) as err:  # a check only
+        return {"note": f"not possible: {type(err).__name__}: {err}"}
     if found is None:
-        return None
+        return {"note": "not possible: no least-squares curvature, or fewer than two blocks "
+                        "refitted with a positive definite curvature"}
     Xr[:, keep] = m[keep] + (Xr[:, keep] - m[keep]) * found["factors"]
     return {"p_value": found["p_value"], "statistic": found["statistic"], "dof": found["dof"],
             "blocks": found["blocks"], "factors": np.asarray(found["factors"]).tolist()}
