@@ -2,3 +2,6 @@
 distilled into a law by sparse regression and written as .phys text (docs/diagnosis.md,
 "Beyond the library")."""
 from . import law_effect  # noqa: F401 - registers the distilled_law physics
+from .beyond import Beyond, beyond_library
+
+__all__ = ["Beyond", "beyond_library"]
