@@ -148,3 +148,20 @@ def test_cli_usage_errors(model, tmp_path, capsys):
         err = capsys.readouterr().err
         assert code == 2 and message in err and "Traceback" not in err
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.slow  # compiles the gain's gradient for this scene (~90 s of CPU)
+def test_an_initial_state_within_its_range(tmp_path):
+    """Varying the rail's initial speed (the push known): the choice stays within --range, and
+    a faster start, which the damping slows visibly, teaches more than the mean random one."""
+    (tmp_path / "data.csv").write_text("t,joint,angle\n" + "".join(f"{t},rail,0\n" for t in TIMES))
+    text = SCENE.replace("values ~ uniform(-5 N, 5 N)", "values: (1, 0, 0, 0, 0) N").replace(
+        "axis: (1, 0, 0) }", "axis: (1, 0, 0)  initial_velocity ~ normal(0 m/s, 1 m/s) }")
+    (tmp_path / "cart.phys").write_text(text)
+    model = physdsl.compile(tmp_path / "cart.phys")
+    d = physdsl.design_experiment(model, None, ["rail.initial_velocity"], rng=(-0.5, 1.5),
+                                  restarts=2, random=6, steps=25)
+    v0 = float(np.ravel(d.settings["rail.initial_velocity"])[0])
+    assert -0.5 <= v0 <= 1.5 and d.energy is None and d.budget is None
+    assert d.gain > d.random_gain and v0 > 1.0  # the larger speed allowed
+    assert set(d.before) == {"c", "m"}
