@@ -74,7 +74,11 @@ def quat_conj(q):
 
 def quat_to_mat(q):
     """Rotation matrix of a (not necessarily unit) quaternion; normalised first."""
-    q = normalize(q)
+    return unit_quat_to_mat(normalize(q))
+
+
+def unit_quat_to_mat(q):
+    """Rotation matrix of a unit quaternion (no renormalisation: one elementwise kernel)."""
     w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
     return jnp.stack([
         jnp.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),

@@ -19,7 +19,7 @@ from jax.scipy.linalg import cho_factor, cho_solve
 
 from .kinematics import Kin
 from .spatial import (cross_force, mm, mv, normalize, quat_axis_angle, quat_mul,
-                      quat_to_mat, spatial_inertia)
+                      quat_to_mat, spatial_inertia, unit_quat_to_mat)
 from .structure import PhysicsModel
 
 # above this many dofs the articulated-body algorithm (``dynamics.forward_dynamics``): the
@@ -60,17 +60,7 @@ def _compose(outer, inner):
     """(q, t) of the rigid motion ``outer`` o ``inner`` (batched; unit quaternions)."""
     qa, ta = outer
     qb, tb = inner
-    return quat_mul(qa, qb), mv(_rot(qa), tb) + ta
-
-
-def _rot(q):
-    """Rotation matrix of a unit quaternion (no renormalisation: one elementwise kernel)."""
-    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    return jnp.stack([
-        jnp.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        jnp.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        jnp.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)
+    return quat_mul(qa, qb), mv(unit_quat_to_mat(qa), tb) + ta
 
 
 def _mask(model: PhysicsModel, *kinds):
