@@ -235,7 +235,8 @@ def scaling(kind, builder, sizes, steps, recursive=False):
         rate = mujoco_rate(xml)
         per_step["mujoco_", n] = 1.0 / rate
         print(f"{kind}_scaling.mujoco_steps_per_s.{n}: {rate:.0f}")
-        print(f"{kind}_scaling.ours_over_mujoco.{n}: {rate * per_step['', n]:.3f}", flush=True)
+        print(f"{kind}_scaling.ours_over_mujoco.{n}: {1 / (rate * per_step['', n]):.3f}",
+              flush=True)
     a, b = sizes[0], sizes[-1]
     for label in ("", "recursive_", "mujoco_"):
         if (label, a) in per_step:

@@ -138,10 +138,10 @@ def tree_kinematics(model: PhysicsModel, prm: dict, q, v) -> Kin:
     vb = jnp.concatenate([v, jnp.zeros(1, q.dtype)])[vidx]  # (B, K)
     Sv_par = jnp.sum(S * jnp.where(own, 0.0, vb)[:, None, :], -1)
     Sv_own = jnp.sum(S * jnp.where(own, vb, 0.0)[:, None, :], -1)
-    vel = A @ (Sv_par + Sv_own)
+    vel = _static_mm(A, Sv_par + Sv_own)
     vel_p = jnp.concatenate([vel, jnp.zeros((1, 6), vel.dtype)])[par]
     c = _cross_motion(vel_p, Sv_par) + _cross_motion(vel, Sv_own)
-    acc0 = A @ c
+    acc0 = _static_mm(A, c)
     S_dof = S[dof_body, :, dof_col]  # (nv, 6)
     jac = A[:, None, dof_body] * S_dof.T[None]  # (B, 6, nv)
     rot = quat_to_mat(quat)
@@ -154,6 +154,12 @@ def tree_kinematics(model: PhysicsModel, prm: dict, q, v) -> Kin:
     return Kin(pos, quat, rot, com, ang, vcom, q, v, vel, jac, c, inertia6, S_list, acc0)
 
 
+def _static_mm(A, X):
+    """A @ X for a static 0/1 matrix A, as a broadcast product and a sum: one fused kernel, where
+    a dot of these small sizes is a library call of its own."""
+    return jnp.sum(jnp.asarray(A, X.dtype)[:, :, None] * X[None], 1)
+
+
 def _cross_motion(v, m):
     """Spatial cross product v x m of motion vectors, batched (..., 6)."""
     w, vo = v[..., :3], v[..., 3:]
@@ -164,7 +170,7 @@ def _cross_motion(v, m):
 def dof_forces(model: PhysicsModel, kin: Kin, f):
     """Generalized forces of spatial forces f (B, 6) at the origin on each body: S_j . (A^T f)."""
     _, A, dof_body, _, _, _ = _tables(model)
-    sub = A.T @ f  # (B, 6) each body's subtree total
+    sub = _static_mm(A.T, f)  # (B, 6) each body's subtree total
     S = _dof_columns(model, kin)
     return jnp.sum(S * sub[dof_body], -1)
 
@@ -173,10 +179,10 @@ def tree_mass_matrix(model: PhysicsModel, kin: Kin):
     """M (nv, nv) by composite inertias: M[j, k] = S_j . (Ic_k S_k) where j's body is k's or an
     ancestor of it, and its transpose."""
     _, A, dof_body, _, _, _ = _tables(model)
-    Ic = jnp.tensordot(A.T, kin.inertia, 1)  # (B, 6, 6)
+    Ic = _static_mm(A.T, kin.inertia.reshape(-1, 36)).reshape(-1, 6, 6)
     S = _dof_columns(model, kin)
     F = mv(Ic[dof_body], S)  # (nv, 6)
-    M1 = S @ F.T  # M1[j, k] = S_j . F_k
+    M1 = jnp.sum(S[:, None, :] * F[None], -1)  # M1[j, k] = S_j . F_k
     up = A[dof_body][:, dof_body].T > 0  # up[j, k]: j's body is k's or an ancestor of k's
     return jnp.where(up, M1, jnp.where(up.T, M1.T, 0.0))
 
