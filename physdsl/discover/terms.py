@@ -76,19 +76,21 @@ def coefficient_unit(term: Term, kind: str) -> str:
     return "*".join([out, *den])
 
 
-def body_law(coefficients: dict, v, d):
-    """Sum of the body terms named in ``coefficients`` (name -> scalar) at (v, d)."""
-    out = jnp.zeros_like(v)
-    for t in BODY_TERMS:
+def law(terms: tuple[Term, ...], coefficients: dict, a, b):
+    """Sum of the ``terms`` named in ``coefficients`` (name -> scalar) at the state (a, b):
+    (v, d) for a body, (q, qdot) for a joint."""
+    out = jnp.zeros_like(a)
+    for t in terms:
         if t.name in coefficients:
-            out = out + coefficients[t.name] * t.fn(v, d)
+            out = out + coefficients[t.name] * t.fn(a, b)
     return out
+
+
+def body_law(coefficients: dict, v, d):
+    """The body law at (v, d)."""
+    return law(BODY_TERMS, coefficients, v, d)
 
 
 def joint_law(coefficients: dict, q, qd):
-    """Sum of the joint terms named in ``coefficients`` at (q, qdot)."""
-    out = jnp.zeros_like(q)
-    for t in JOINT_TERMS:
-        if t.name in coefficients:
-            out = out + coefficients[t.name] * t.fn(q, qd)
-    return out
+    """The joint law at (q, qdot)."""
+    return law(JOINT_TERMS, coefficients, q, qd)
