@@ -1,13 +1,11 @@
 """Rigid-body dynamics in world coordinates: the joint-space mass matrix and bias forces from the
-body Jacobians (vectorised over bodies), forward dynamics by one Cholesky solve for small trees
-and by Featherstone's articulated-body algorithm (loops over the static tree at trace time) for
-large ones.
+body Jacobians (vectorised over bodies), and Featherstone's articulated-body algorithm (loops over
+the static tree at trace time) for trees too large for physics/tree.py's one Cholesky solve.
 """
 from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
-from jax.scipy.linalg import cho_factor, cho_solve
 
 from .kinematics import Kin
 from .spatial import cross_force, mm, mv
@@ -38,16 +36,6 @@ def bias_forces(model: PhysicsModel, kin: Kin):
 def inverse_dynamics(model: PhysicsModel, kin: Kin, qdd):
     """Generalized forces tau = M qdd + bias (no external forces)."""
     return mv(mass_matrix(model, kin), qdd) + bias_forces(model, kin)
-
-
-def joint_space_accel(model: PhysicsModel, kin: Kin, tau):
-    """qdd = M^-1 (tau - bias) by one Cholesky solve: vectorised over bodies, so it compiles
-    and runs faster than the articulated-body recursion for the small trees of scenes."""
-    M = mass_matrix(model, kin)
-    rhs = tau - bias_forces(model, kin)
-    if model.nv == 1:
-        return rhs / M[0]
-    return cho_solve(cho_factor(M), rhs)
 
 
 def small_inv(D):
