@@ -49,6 +49,7 @@ def _best_basin(model):
     return found.basins[0], found
 
 
+@pytest.mark.slow  # compile-bound: several minutes on 2 cores (the default suite keeps < 15 min)
 def test_spring_from_mujoco_fits_in_the_right_basin():
     model = _spring_model()
     (name, comp, freq, _), = oscillations(model)
