@@ -120,7 +120,9 @@ def block_factors(problem, mode, keep, scale=None, on_block=None) -> dict | None
     if len(z2) < 2 or dof == 0:
         return None
     p = float(chi2.sf(stat, dof))
-    excess = np.nanmean(np.stack(z2), axis=0)
+    Z = np.stack(z2)
+    seen = np.isfinite(Z).sum(axis=0)  # blocks that informed each unknown
+    excess = np.where(seen > 0, np.nansum(Z, axis=0) / np.maximum(seen, 1), np.nan)
     factors = np.ones(len(keep))
     if p < LEVEL:
         e = np.maximum(np.where(np.isfinite(excess), excess, 1.0), 1.0)
