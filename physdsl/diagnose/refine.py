@@ -32,7 +32,7 @@ from .loo import loo_reliability
 from .quality import fit_quality
 from .rank import diagnose
 from .report import html_page, new_figure, save_png
-from .stepwise import judge, parse, reexamine
+from .stepwise import EXPERIMENT, judge, parse, reexamine
 from .workflow import check_model, point_estimate
 
 
@@ -68,6 +68,7 @@ class _Loop:
     # nothing in it explains the misfit; its law enters a round only with allow_learned
     beyond: object = None
     allow_learned: bool = False
+    ties: list = field(default_factory=list)  # this round's re-examination: swaps the data cannot decide
 
 
 def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", chains: int = 2,
@@ -107,14 +108,16 @@ def _round(loop: _Loop, k: int, current: Path, last: bool, confirm_top: int) -> 
     now = _fit(loop, k, current, model)
     effects = _effects(draft.scene)
     due = [c for c, seen in loop.revisable.values() if seen != effects]
+    loop.ties = []
     if due and not last:
         nxt = _reexamine(loop, k, current, draft, now, due, effects)
         if nxt is not None:
             return nxt
     if now.report.consistent or last:
-        _record(loop, k, current, now, "residuals consistent with the noise (runs, autocorrelation, "
+        _record(loop, k, current, now, ("residuals consistent with the noise (runs, autocorrelation, "
                 "windows and trend tests at the noise level)" if now.report.consistent
                 else "stopped: --max-rounds reached")
+                + "".join(f"; the data cannot tell: {t}" for t in loop.ties))
         return None
     diag = diagnose(model, now.idata, confirm_top=max(confirm_top, 1),
                     outdir=current.parent / "diagnosis", check_report=now.report, echo=loop.echo,
@@ -164,7 +167,8 @@ def _reexamine(loop: _Loop, k: int, current: Path, draft: Draft, now, due, effec
     """Re-examine ``due`` given the effects now present; the next round's file where a swap or
     a drop wins, else None."""
     loop.echo(f"round {k}: re-examining {', '.join(_name(c) for c in due)} given the effects now present")
-    act, _ = reexamine(now, draft, due, loop.echo)
+    act, lines = reexamine(now, draft, due, loop.echo)
+    loop.ties = [line for line in lines if EXPERIMENT in line]  # said where the loop stops
     for c in due:
         if c.key in loop.revisable:
             loop.revisable[c.key] = (c, effects)

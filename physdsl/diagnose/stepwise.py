@@ -28,6 +28,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..compile import Model
+from ..design.experiment import design
+from ..errors import UsageError
 from ..infer.fit import quick_fit
 from .candidates import REQUIRES, Candidate, physics_candidates
 from .confirm import REFIT_FAILURES
@@ -98,14 +100,18 @@ def alternatives(draft: Draft, cand: Candidate, bare: Draft | None = None) -> li
     lib = draft.scene.effect_library
     mine = lib[cand.name].strength
     bare = bare or draft.without_candidate(cand)
-    out = []
-    for c in physics_candidates(bare.scene):
-        s = lib[c.name].strength
-        if (c.kind == "effect" and c.target == cand.target and c.name != cand.name
-                and s.sign and s.sign == mine.sign and s.off == mine.off
-                and not s.shape and not mine.shape):
-            out.append(c)
-    return out
+    return [c for c in physics_candidates(bare.scene)
+            if c.kind == "effect" and c.target == cand.target and c.name != cand.name
+            and _alike(lib[c.name].strength, mine)]
+
+
+def _alike(s, mine) -> bool:
+    """Two laws' strengths that can stand for each other: the same off value and shape, and,
+    for scalars, the same physical sign (a vector strength, a steady push ``constant_force``
+    or a ``wind``, has no sign: either can stand for the other once drag is in)."""
+    if tuple(s.shape) != tuple(mine.shape) or not np.all(np.asarray(s.off) == np.asarray(mine.off)):
+        return False
+    return bool(s.shape) or bool(s.sign and s.sign == mine.sign)
 
 
 @dataclass
@@ -150,8 +156,12 @@ def reexamine(current: Judged, draft: Draft, revisable: list[Candidate], echo=No
                 continue
             c = compare(new, current)
             ok = drop_wins(c) if alt is None else swap_wins(c)
+            tie = ""
+            if alt is not None and not ok and tied(c):  # the data cannot tell: say what would
+                proposal = experiment(current, new, cand, alt)
+                tie = f" — a tie{f'; {EXPERIMENT}: {proposal.text()}' if proposal else ''}"
             lines.append(f"{what}: {c.text()}, RMS {new.report.rms_sigma:.2f}σ"
-                         f"{' — wins' if ok else ''} ({time.perf_counter() - t0:.0f} s)")
+                         f"{' — wins' if ok else tie} ({time.perf_counter() - t0:.0f} s)")
             echo(f"    {lines[-1]}")
             if ok:
                 wins.append(Action("dropped" if alt is None else "swapped", cand, alt, new_draft, new, c))
@@ -161,6 +171,31 @@ def reexamine(current: Judged, draft: Draft, revisable: list[Candidate], echo=No
     best = max(wins, key=lambda a: (a.comparison.d_log_z if a.comparison.d_log_z is not None
                                     else -math.inf, a.kind == "dropped", a.comparison.d_elpd))
     return best, lines
+
+
+EXPERIMENT = "the experiment that would decide"
+
+
+def tied(c: Comparison) -> bool:
+    """Neither scene is better: ΔELPD within the tie margin and no strong evidence either way."""
+    return abs(c.d_elpd) <= c.margin and (c.d_log_z is None or abs(c.d_log_z) <= STRONG)
+
+
+def experiment(current: Judged, new: Judged, cand: Candidate, alt: Candidate):
+    """The measurement that would separate the scene with ``cand`` from the one with ``alt``
+    (``design.experiment``, each at its most likely draw): varying the target's initial
+    velocity (a body) or angle (a joint) over its prior range; None where neither is an
+    unknown of both scenes."""
+    names = set(current.model.unknown_names) & set(new.model.unknown_names)
+    target = cand.target[0]
+    field_ = next((f for f in (f"{target}.velocity", f"{target}.initial") if f in names), None)
+    if field_ is None:
+        return None
+    try:
+        return design(current.model, point_estimate(current.model, current.idata), new.model,
+                      point_estimate(new.model, new.idata), field_, labels=(_name(cand), _name(alt)))
+    except UsageError:
+        return None
 
 
 def _required(draft: Draft, cand: Candidate) -> bool:

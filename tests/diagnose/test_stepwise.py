@@ -12,7 +12,7 @@ from physdsl.compile import Model
 from physdsl.diagnose.candidates import Candidate, physics_candidates
 from physdsl.diagnose.edits import Draft, load_text, unknown_keys, with_effect
 from physdsl.diagnose.refine import refine
-from physdsl.diagnose.stepwise import Comparison, alternatives, drop_wins, swap_wins
+from physdsl.diagnose.stepwise import Comparison, alternatives, drop_wins, swap_wins, tied
 
 from .conftest import PENDULUM, load_scene, write_csv
 
@@ -72,6 +72,23 @@ def test_alternatives_come_from_the_library_same_target_and_sign(tmp_path):
     assert all(k.endswith("@bob") for k in alts)
 
 
+def test_a_steady_push_and_a_wind_stand_for_each_other_once_drag_is_in(tmp_path):
+    """Vector laws of one shape and off value are alternatives (no sign to match): with
+    quadratic drag on the ball a constant force may be swapped for a wind and back; without
+    drag wind is no candidate, so a constant force has no alternative."""
+    write_csv(tmp_path / "data.csv", np.linspace(0, 1, 11), np.zeros((11, 3)), "ball")
+    scene = load_scene(tmp_path, STEEP)
+    push = Candidate("effect", "constant_force", ("ball",))
+    pushed = load_text(scene, with_effect(scene, push))
+    assert alternatives(Draft.of(pushed), push) == []
+    both = load_text(pushed, with_effect(pushed, Candidate("effect", "quadratic_drag", ("ball",))))
+    assert {c.key for c in alternatives(Draft.of(both), push)} == {"wind@ball"}
+    windy = load_text(scene, with_effect(scene, Candidate("effect", "quadratic_drag", ("ball",)),
+                                         Candidate("effect", "wind", ("ball",))))
+    assert {c.key for c in alternatives(Draft.of(windy), Candidate("effect", "wind", ("ball",)))} \
+        == {"constant_force@ball"}
+
+
 def test_swap_and_drop_rules():
     # better predictions beyond the margin, evidence agreeing or n/a: swap; evidence against: no
     assert swap_wins(Comparison(50.0, 8.0, 40.0)) and swap_wins(Comparison(50.0, 8.0, None))
@@ -82,6 +99,10 @@ def test_swap_and_drop_rules():
     # drop: predictions within the margin and the evidence for the smaller scene
     assert drop_wins(Comparison(-3.0, 8.0, 2.5)) and not drop_wins(Comparison(-3.0, 8.0, -0.5))
     assert not drop_wins(Comparison(-30.0, 8.0, 5.0))
+    # a tie (the experiment that would decide is proposed): ΔELPD within the margin, no strong
+    # evidence either way
+    assert tied(Comparison(3.0, 8.0, -1.0)) and tied(Comparison(-3.0, 8.0, None))
+    assert not tied(Comparison(9.0, 8.0, 0.0)) and not tied(Comparison(1.0, 8.0, -3.0))
 
 
 # a steep throw: 20 m/s up, 2 m/s at the top, hidden quadratic drag; linear drag cannot bend the

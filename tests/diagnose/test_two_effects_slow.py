@@ -96,3 +96,22 @@ def test_refine_names_both_effects_of_the_corpus_two_effects_throw(tmp_path):
     summary = _summary(rounds[-1].scene)
     for key in ("quadratic_drag@ball.coefficient", "constant_force@ball.force"):
         assert _covers(summary, key, truth["parameters"][key]), key
+
+
+def test_refine_names_sliding_friction_and_rolling_resistance_on_a_launched_ball(tmp_path):
+    """examples/hidden-effect/sliding_ball (physdsl-simulated): a ball launched without spin on a
+    frictionless floor in the naive scene; sliding friction (mu 0.15) spins it up until it rolls,
+    then rolling resistance (1 mm) slows it. Rolling resistance cannot act on a frictionless
+    floor, so the loop must add the friction first and then the rolling resistance."""
+    folder = EXAMPLES / "hidden-effect" / "sliding_ball"
+    truth = json.loads((folder / "truth.json").read_text())
+    rounds = refine(folder / "naive.phys", tmp_path / "refine", seed=0, echo=print)
+    final = rounds[-1]
+    history = [(r.action, r.added, r.replaced, round(r.rms_sigma, 2)) for r in rounds]
+    added = _effects(final.scene) - _effects(folder / "naive.phys")
+    assert added == {("contact_friction", ("floor", "ball")),
+                     ("rolling_resistance", ("floor", "ball"))}, history
+    assert final.rms_sigma <= 1.2 and final.consistent, history
+    summary = _summary(final.scene)
+    for key in ("contact_friction@floor,ball.coefficient", "rolling_resistance@floor,ball.coefficient"):
+        assert _covers(summary, key, truth["parameters"][key]), (key, summary.get(key))
