@@ -246,7 +246,7 @@ def component_labels(model, u) -> list[str]:
 def rollout_bytes_per_recording(model) -> int:
     """Bytes of one recording's rollout as the likelihood reads it (its fields, float64)."""
     values = {u.name: jnp.zeros(model.base_shapes[u.name]) for u in model.unknowns}
-    values.update({k: jnp.zeros(()) for k in model.settings})
+    values.update({k: jnp.zeros(np.shape(v)[1:]) for k, v in model.settings.items()})
     out = jax.eval_shape(lambda v: model.simulator.simulate(v, model.rollout_fields), values)
     return int(sum(np.prod(leaf.shape) * leaf.dtype.itemsize
                    for leaf in jax.tree_util.tree_leaves(out)))

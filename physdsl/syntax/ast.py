@@ -210,6 +210,7 @@ class ControlItem:
     columns: tuple[str, ...] = ()
     block: Block | None = None
     span: Span | None = None
+    setting: str | None = None  # ``from throws.push``: the manifest column of files (per recording)
 
 
 @dataclass(frozen=True)

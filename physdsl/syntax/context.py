@@ -77,6 +77,9 @@ class Resolver:
         # experiments (syntax/experiments.py): the first recording's folder, settings' names
         self.observation_base: Path | None = None
         self.setting_names: set[str] = set()
+        self.experiments_name: str | None = None  # its NAME, even when reading it failed
+        self.recording_sources: list = []  # the recordings as listed (experiments.Source)
+        self.recording_tables: dict[str, list] = {}  # per-recording arrays (controls) by key
 
     def err(self, cls, msg, span, hint=None, source=None):
         """The error ``cls(msg, span, hint)`` with the text of the file ``span`` lies in."""

@@ -7,7 +7,7 @@ import numpy as np
 from .. import expr as E
 from ..errors import PhysNameError, PhysStructureError, PhysTypeError, Span
 from ..scene import Body, EffectDecl, EffectParam, EffectUse, Joint, Unknown
-from . import ast, collide
+from . import ast, collide, experiments
 from .context import AnyKey
 from .contact_sugar import CONTACT_SUGAR, SUGAR_PARAM
 from .data import read_control
@@ -159,6 +159,19 @@ def control(res, item: ast.ControlItem) -> EffectUse | None:
     use = effect_use(res, "control_force", (item.target,), gain_fields, item.span)
     key = use.key
     params = dict(use.params)
+    if item.setting is not None:  # one file per recording, from the manifest's column
+        if "times" in fs or "values" in fs:
+            raise res.err(PhysStructureError, "a control reads its values from the files or "
+                          "from the block, not both", item.span)
+        if len(item.columns) != width:
+            raise res.err(PhysTypeError, f"a control on a {kind} needs {width} column"
+                          f"{'s' * (width > 1)}, got {len(item.columns)}", item.span)
+        table = experiments.control_table(res, item, width)
+        if table is None:
+            return None
+        times, ref = table
+        params["values"] = E.Ref(ref)
+        return EffectUse(use.effect, use.target, params, {"times": times}, item.span)
     if item.file is not None:
         if "times" in fs or "values" in fs:
             raise res.err(PhysStructureError, "a control reads its values from the file or "

@@ -8,6 +8,11 @@ number). A setting is written ``NAME.column`` in the scene (``throws.speed``) an
 as a ``Ref`` filled per recording. Priors written ``~ per_experiment dist(..)`` draw one value
 per recording; every other unknown is shared by all of them. Mistakes are located: the scene
 line for the statement, file/row/column for the manifest and each recording's data.
+
+A manifest column may name a file per recording instead of a number: ``control push on ball
+from throws.push column (fx, fy, fz)`` reads each recording's control table from the file in
+its ``push`` cell (relative to the manifest). The tables are put on one time grid (the union of
+their times: exact for the zero-order hold) and enter the rollout as a per-recording setting.
 """
 from __future__ import annotations
 
@@ -15,11 +20,13 @@ import dataclasses
 import re
 from pathlib import Path
 
+import numpy as np
+
 from .. import expr as E
 from ..errors import DataError, PhysError, PhysStructureError
 from ..scene import Experiments, Recording, Scene
 from . import ast
-from .data import _col, _number, _rows, read_observation
+from .data import _col, _number, _rows, read_control, read_observation
 from .expressions import R
 from .units import DIMLESS, UnitError, parse_unit
 
@@ -47,12 +54,16 @@ def find_item(res, scene: ast.SceneDecl) -> ast.ExperimentsItem | None:
     return items[0] if items else None
 
 
-def declare(res, item: ast.ExperimentsItem) -> list[Source]:
+def declare(res, item: ast.ExperimentsItem, scene: ast.SceneDecl | None = None) -> list[Source]:
     """Read the recordings of ``item``, register its settings as ``NAME.column`` values and
-    point the observations at the first recording's folder; [] (error recorded) on failure."""
-    sources = res.collect(_read, res, item)
+    point the observations at the first recording's folder; [] (error recorded) on failure.
+    Columns that a ``control ... from NAME.column`` names hold a file per recording."""
+    res.experiments_name = item.name
+    files = {} if scene is None else file_columns(item, scene)
+    sources = res.collect(_read, res, item, files)
     if not sources:
         return []
+    res.recording_sources = sources
     res.items_by_name[item.name] = "experiments"
     res.setting_names = set(sources[0].settings["dims"])
     for key, dim in sources[0].settings["dims"].items():
@@ -61,14 +72,29 @@ def declare(res, item: ast.ExperimentsItem) -> list[Source]:
     return sources
 
 
-def _read(res, item: ast.ExperimentsItem) -> list[Source]:
+def file_columns(item: ast.ExperimentsItem, scene: ast.SceneDecl) -> dict:
+    """The manifest columns that controls read a file from: column -> the first such
+    control's span (where a missing column is reported)."""
+    out = {}
+    for it in scene.items:
+        if isinstance(it, ast.ControlItem) and it.setting and it.setting.startswith(item.name + "."):
+            out.setdefault(it.setting.split(".", 1)[1], it.span)
+    return out
+
+
+def _read(res, item: ast.ExperimentsItem, files: dict) -> list[Source]:
     path = res.data_file(item.source, item.span, "recordings")
     if any(c in item.source for c in GLOB_CHARS):
+        if files:
+            raise res.err(PhysStructureError, f"control files per recording come from a "
+                          f"manifest's column, but '{item.source}' is a glob",
+                          next(iter(files.values())), "list the recordings in a manifest CSV: "
+                          "name, folder, and a column naming each one's control file")
         return _from_glob(res, item, path)
     if path.suffix.lower() != ".csv":
         raise res.err(PhysStructureError, f"'{item.source}' is neither a glob nor a manifest "
                       "CSV", item.span, 'e.g. "throws/*/trajectory.csv" or "throws.csv"')
-    return _from_manifest(item, path)
+    return _from_manifest(item, path, files)
 
 
 def _from_glob(res, item, path: Path) -> list[Source]:
@@ -95,13 +121,14 @@ def _from_glob(res, item, path: Path) -> list[Source]:
     return out
 
 
-def _from_manifest(item, path: Path) -> list[Source]:
-    """One recording per row of the manifest: its name, folder and known settings."""
+def _from_manifest(item, path: Path, files: dict | None = None) -> list[Source]:
+    """One recording per row of the manifest: its name, folder, known settings and files."""
     header, rows = _rows(path, item.span)
     iname, ifolder = (_col(header, c, path, item.span) for c in (NAME_COLUMN, FOLDER_COLUMN))
+    ifiles = {_col(header, c, path, span): c for c, span in (files or {}).items()}
     settings = {}  # column index -> (dotted name, SI scale, dim, header text)
     for i, h in enumerate(header):
-        if i in (iname, ifolder):
+        if i in (iname, ifolder) or i in ifiles:
             continue
         m = _HEADER.match(h)
         if m is None:
@@ -135,17 +162,63 @@ def _from_manifest(item, path: Path) -> list[Source]:
                 raise DataError("missing value", path, row=n, column=h, span=item.span,
                                 hint="every recording needs every setting")
             values[key] = _number(row[i].strip(), path, n, h, item.span) * scale
+        named = {c: _file_cell(row[i].strip(), path, n, c, item.span) for i, c in ifiles.items()}
         folder = path.parent / cells[FOLDER_COLUMN]
         if not folder.is_dir():
             raise DataError(f"no folder '{cells[FOLDER_COLUMN]}'", path, row=n,
                             column=FOLDER_COLUMN, span=item.span,
                             hint="folders are relative to the manifest")
         dims = {key: dim for key, _, dim, _ in settings.values()}
-        out.append(Source(cells[NAME_COLUMN], folder, {"values": values, "dims": dims}, n))
+        out.append(Source(cells[NAME_COLUMN], folder,
+                          {"values": values, "dims": dims, "files": named}, n))
     if not out:
         raise DataError("no recordings listed", path, span=item.span,
                         hint=f"one row per recording: {NAME_COLUMN}, {FOLDER_COLUMN}, settings")
     return out
+
+
+def _file_cell(cell: str, manifest: Path, row: int, column: str, span) -> Path:
+    """The file a manifest cell names (relative to the manifest); located errors."""
+    if not cell:
+        raise DataError("missing file", manifest, row=row, column=column, span=span,
+                        hint="every recording needs its own file in this column")
+    file = manifest.parent / cell
+    if not file.is_file():
+        raise DataError(f"no file '{cell}'", manifest, row=row, column=column, span=span,
+                        hint="files are relative to the manifest")
+    return file
+
+
+def control_table(res, item: ast.ControlItem, width: int):
+    """(the shared time grid, the setting's key) of a control read per recording from the
+    manifest column ``item.setting``: each recording's table (its file's ``t`` and
+    ``item.columns``) held on the union of every recording's times, stacked (R, N[, 3]) in
+    ``res.recording_tables`` under the key ``NAME.column.CONTROL``; None when the recordings
+    could not be read."""
+    head, column = item.setting.split(".", 1)
+    if head != res.experiments_name:
+        raise res.err(PhysStructureError, f"'{item.setting}': '{head}' is not the scene's "
+                      "experiments", item.span, "a control file per recording comes from a "
+                      "column of the experiments' manifest: from NAME.column")
+    if not res.recording_sources:
+        return None  # the experiments could not be read: that error is recorded already
+    tables = []
+    for s in res.recording_sources:
+        file = s.settings["files"][column]
+        res.bounds.check(file, "control file", str(file), item.span, res.source)
+        tables.append(read_control(file, item.columns, item.span))
+    grid = np.unique(np.concatenate([t for t, _ in tables]))
+    held = np.stack([_hold(t, v, grid) for t, v in tables])
+    key = f"{item.setting}.{item.name}"
+    res.recording_tables[key] = list(held if width == 3 else held[..., 0])
+    return grid, key
+
+
+def _hold(times: np.ndarray, values: np.ndarray, grid: np.ndarray) -> np.ndarray:
+    """``values`` (zero-order hold at ``times``, 0 before the first) sampled at ``grid``, as
+    ``physics/effects/control_force.hold`` reads them."""
+    k = np.searchsorted(times, grid + 1e-9, side="right") - 1
+    return np.where((k >= 0)[:, None], values[np.clip(k, 0, len(times) - 1)], 0.0)
 
 
 def check_unknowns(res, scene: ast.SceneDecl, has_experiments: bool) -> None:
@@ -182,14 +255,15 @@ def attach(res, item: ast.ExperimentsItem, scene_ast: ast.SceneDecl, sources: li
     for i, s in enumerate(sources):
         obs = scene.observations if i == 0 else tuple(
             _reread(res, o, observes[o.name], s.folder) for o in scene.observations)
-        recordings.append(Recording(s.name, s.folder, dict(s.settings["values"]), obs, s.row))
+        values = {**s.settings["values"], **{k: v[i] for k, v in res.recording_tables.items()}}
+        recordings.append(Recording(s.name, s.folder, values, obs, s.row))
     res.raise_errors()
     ends = [float(o.times[-1]) for r in recordings for o in r.observations if len(o.times)]
     world = scene.world
     if world.duration is None and ends:
         world = dataclasses.replace(world, duration=max(ends))
     ex = Experiments(item.name, res.base / item.source, tuple(recordings),
-                     tuple(sources[0].settings["dims"]), item.span)
+                     tuple(sources[0].settings["dims"]) + tuple(res.recording_tables), item.span)
     return dataclasses.replace(scene, world=world, experiments=ex)
 
 

@@ -93,11 +93,14 @@ class _ToAst(Transformer):
     def control(self, meta, ch):
         src = ch[2]
         file, cols = (src if src is not None else (None, ()))
+        if isinstance(file, ast.Dotted):  # a manifest column naming each recording's file
+            return ast.ControlItem(str(ch[0]), str(ch[1]), None, cols, ch[3], self._s(meta),
+                                   ".".join(file.parts))
         return ast.ControlItem(str(ch[0]), str(ch[1]), file, cols, ch[3], self._s(meta))
 
     def control_source(self, meta, ch):
         cols = tuple(unquote(c) if c.type == "STRING" else str(c) for c in ch[1:])
-        return (unquote(ch[0]), cols)
+        return (ch[0] if isinstance(ch[0], ast.Dotted) else unquote(ch[0]), cols)
 
     def camera(self, meta, ch):
         return ast.CameraItem(str(ch[0]), ch[1], self._s(meta))

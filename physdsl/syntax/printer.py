@@ -250,11 +250,12 @@ class _Printer:
             self.block_item(f"effect {it.effect} on {target}", it.block, it, indent)
         elif isinstance(it, ast.ControlItem):
             head = f"control {it.name} on {it.target}"
-            if it.file is not None:
+            if it.file is not None or it.setting is not None:
                 cols = [c if _NAME_RE.match(c) else _q(c) for c in it.columns]
                 col = cols[0] if len(cols) == 1 and _NAME_RE.match(it.columns[0]) else \
                     ("(" + ", ".join(cols) + ")" if len(cols) > 1 else cols[0])
-                head += f" from {_q(it.file)} column {col}"
+                src = _q(it.file) if it.file is not None else it.setting
+                head += f" from {src} column {col}"
             self.block_item(head, it.block, it, indent)
         elif isinstance(it, ast.CameraItem):
             self.block_item(f"camera {it.name}", it.block, it, indent)

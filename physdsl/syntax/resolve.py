@@ -63,7 +63,7 @@ def run(res: Resolver) -> Scene:
         res.register(name, p.value, None)
     scene = expand(scene, res.errors)  # loops unrolled, aliases applied (syntax/loops.py)
     many = experiments.find_item(res, scene)  # recordings read, settings named
-    recordings = experiments.declare(res, many) if many is not None else []
+    recordings = experiments.declare(res, many, scene) if many is not None else []
     declare(res, scene)
     built = build(res, scene)
     experiments.check_unknowns(res, scene, many is not None)

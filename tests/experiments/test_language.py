@@ -36,6 +36,7 @@ def test_there_are_golden_files_for_the_data_and_the_scene():
     texts = [p.with_suffix(".expected").read_text() for p in BROKEN]
     assert any(", row 3, column 'speed [m/s]'" in t for t in texts)  # file, row, column
     assert any("bad_throws/01/trajectory.csv, row 1: no column 'z'" in t for t in texts)
+    assert any(", row 3, column 'push': no file 'throws/01/nope.csv'" in t for t in texts)
 
 
 def test_glob_reads_every_recording_from_its_folder():
