@@ -41,12 +41,22 @@ With ``--mode false-positives`` the refine loop runs on each case of ``examples/
 and the run prints ``effects_added.CASE`` and ``false_positive_rate: x/20`` (the cases where
 refine added any effect; the goal is at most 2, the nominal rate of its tests).
 
+With ``--profile`` (refine only) the case's ``refine`` runs with timers on its stages (wrappers
+put on the functions named in ``PROFILED``; nothing in physdsl changes): per stage
+``profile.STAGE.CASE: wall W s, cpu C s, compile K s, calls N`` (inclusive: a refit's time
+holds its fits; ``compile`` is JAX's tracing, lowering and XLA compile time spent inside the
+stage, from ``jax.monitoring``). ``--all`` runs every hidden-effect case that way, each in its
+own process, and prints ``wall_s.CASE``, ``cpu_s.CASE``, ``compile_s.CASE``,
+``peak_rss_mb.CASE``, ``named.CASE`` (1: every hidden effect named) and
+``final_rms_sigma.CASE``. Profiled runs start with an empty compilation cache (a user's first
+run) unless ``--warm-cache``.
+
 Each case runs in its own process with a time limit (``--timeout``, seconds), so a case that
 cannot finish is reported as such and the others still run; its refits are reported on stderr
 as they go.
 
 Run: .venv/bin/python benchmarks/diagnosis.py [--case thrown_ball [--case pendulum]] [--confirm 2]
-[--mode diagnose|refine|both|false-positives] [--timeout 600]
+[--mode diagnose|refine|both|false-positives] [--timeout 600] [--profile] [--all]
 """
 from __future__ import annotations
 
@@ -69,7 +79,11 @@ def _run_child(name: str, cmd: list[str], timeout: float) -> dict:
     import threading
 
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    timer = threading.Timer(timeout, proc.kill)
+    def stop():  # SIGTERM first: a profiled case prints the stages it reached
+        proc.terminate()
+        threading.Timer(60, proc.kill).start()
+
+    timer = threading.Timer(timeout, stop)
     timer.start()
     lines = []
     for ln in proc.stdout:
@@ -224,6 +238,123 @@ def run_refine(name: str, seed: int, folder: Path | None = None) -> dict:
     }
 
 
+# (module, attribute, stage): the functions timed by ``--profile``. Inclusive: a refit holds
+# its fits, a fit its multistart, Laplace, predictions and block check.
+PROFILED = (
+    ("physdsl.diagnose.refine", "_fit", "round fit (fit, check, evidence)"),
+    ("physdsl.infer.fit", "fit_with_fallback", "fit"),
+    ("physdsl.infer.fit", "quick_fit", "quick fit"),
+    ("physdsl.infer.run", "starts", "multistart"),
+    ("physdsl.infer.backends.map", "find_modes", "MAP modes"),
+    ("physdsl.infer.backends.map", "laplace_sqrt", "Laplace"),
+    ("physdsl.infer.output", "build_inference_data", "predictions"),
+    ("physdsl.infer.intervals", "add_robust", "robust intervals"),
+    ("physdsl.infer.intervals", "_block_check", "block check"),
+    ("physdsl.diagnose.quality", "fit_quality", "fit quality"),
+    ("physdsl.diagnose.workflow", "check_model", "check"),
+    ("physdsl.diagnose.loo", "combined_loo", "PSIS-LOO"),
+    ("physdsl.diagnose.evidence", "laplace_log_evidence", "Laplace evidence"),
+    ("physdsl.diagnose.stepwise", "reexamine", "re-examination"),
+    ("physdsl.diagnose.rank", "diagnose", "diagnose"),
+    ("physdsl.diagnose.screening", "score_all", "score tests"),
+    ("physdsl.diagnose.confirm", "confirm", "confirmation"),
+    ("physdsl.diagnose.confirm", "Baseline.__init__", "leave-future-out baseline"),
+    ("physdsl.diagnose.confirm", "refit", "candidate refit"),
+    ("physdsl.diagnose.lfo", "lfo_points", "leave-future-out predictions"),
+)
+COMPILE_EVENTS = ("/jax/core/compile/jaxpr_trace_duration",
+                  "/jax/core/compile/jaxpr_to_mlir_module_duration",
+                  "/jax/core/compile/backend_compile_duration")
+
+
+class StageTimer:
+    """Wall, CPU and JAX compile seconds per stage (``PROFILED``), inclusive; a stage nested in
+    itself counts once. ``quick fit`` on a Model with a cut-off is the leave-future-out fit."""
+
+    def __init__(self):
+        self.totals: dict[str, list[float]] = {}  # stage -> [wall, cpu, compile, calls]
+        self.active: list[str] = []
+        self.compile = 0.0
+
+    def on_event(self, event: str, seconds: float, **_) -> None:
+        if event in COMPILE_EVENTS:
+            self.compile += seconds
+            for label in set(self.active):
+                self.totals[label][2] += seconds
+
+    def wrap(self, fn, label: str):
+        import functools
+
+        timer = self
+
+        @functools.wraps(fn)
+        def timed(*args, **kwargs):
+            name = label
+            if label == "quick fit" and getattr(args[0] if args else kwargs.get("model"),
+                                                "until", None) is not None:
+                name = "leave-future-out fit"
+            if name in timer.active:
+                return fn(*args, **kwargs)
+            row = timer.totals.setdefault(name, [0.0, 0.0, 0.0, 0])
+            timer.active.append(name)
+            w, c = time.perf_counter(), time.process_time()
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                row[0] += time.perf_counter() - w
+                row[1] += time.process_time() - c
+                row[3] += 1
+                timer.active.remove(name)
+        return timed
+
+    def install(self) -> None:
+        """Put the timers on every ``PROFILED`` function, wherever physdsl imported it."""
+        import importlib
+
+        import jax
+
+        jax.monitoring.register_event_duration_secs_listener(self.on_event)
+        importlib.import_module("physdsl.diagnose.refine")
+        mods = [m for n, m in list(sys.modules.items()) if n.startswith("physdsl") and m]
+        for modname, attr, label in PROFILED:
+            owner = importlib.import_module(modname)
+            if "." in attr:  # a method
+                cls, meth = attr.split(".")
+                klass = getattr(owner, cls)
+                setattr(klass, meth, self.wrap(getattr(klass, meth), label))
+                continue
+            orig = getattr(owner, attr)
+            new = self.wrap(orig, label)
+            for m in mods:
+                for k, v in list(vars(m).items()):
+                    if v is orig:
+                        setattr(m, k, new)
+
+
+def run_profiled(name: str, seed: int) -> dict:
+    """``run_refine`` with the stage timers on; adds the profile, compile seconds and peak RSS."""
+    import resource
+
+    import signal
+
+    def stop(signum, frame):  # the parent's time limit: end with the profile so far
+        raise TimeoutError("stopped at the time limit")
+
+    signal.signal(signal.SIGTERM, stop)
+    timer = StageTimer()
+    timer.install()
+    t0, c0 = time.perf_counter(), time.process_time()
+    try:
+        res = run_refine(name, seed)
+    except BaseException as err:  # noqa: BLE001 - report the stages reached
+        res = {"error": f"{type(err).__name__}: {err}", "wall_s": time.perf_counter() - t0,
+               "cpu_s": time.process_time() - c0}
+    res["profile"] = {k: v for k, v in timer.totals.items()}
+    res["compile_s"] = timer.compile
+    res["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    return res
+
+
 def run_check(name: str, seed: int) -> dict:
     """Fit one no-effect case as ``refine``'s round 0 does (MAP, its defaults) and run the check:
     whether it calls the residuals consistent with the noise, each axis's test p-values, and
@@ -295,9 +426,21 @@ def main() -> None:
                          "false-positives: the refine loop on the no-effect cases (examples/no-effect); "
                          "check: the check's verdict at the fitted true model of the no-effect cases")
     ap.add_argument("--json", type=Path, help="also write every case's result to this JSON file")
+    ap.add_argument("--profile", action="store_true",
+                    help="refine with timers per stage (implies --mode refine)")
+    ap.add_argument("--all", action="store_true",
+                    help="every hidden-effect case, profiled, each in its own process")
+    ap.add_argument("--warm-cache", action="store_true",
+                    help="profiled runs use the user's compilation cache (default: an empty one)")
     ap.add_argument("--one", default="", help=argparse.SUPPRESS)  # worker mode
     args = ap.parse_args()
+    if args.all or args.profile:
+        args.mode, args.profile = "refine", True
     if args.one:
+        if args.profile:
+            res = {"case": args.one, **run_profiled(args.one, args.seed)}
+            print("RESULT " + json.dumps(res), flush=True)
+            return
         res = {"case": args.one}
         if args.mode == "false-positives":
             res.update(run_refine(args.one, args.seed, NO_EFFECT / args.one))
@@ -323,8 +466,14 @@ def main() -> None:
     for name in names:
         t0 = time.perf_counter()
         cmd = [sys.executable, __file__, "--one", name, "--confirm", str(args.confirm),
-               "--seed", str(args.seed), "--mode", args.mode]
-        res = _run_child(name, cmd, args.timeout)
+               "--seed", str(args.seed), "--mode", args.mode] + (["--profile"] if args.profile else [])
+        if args.profile and not args.warm_cache:  # a user's first run: nothing compiled yet
+            import tempfile
+            with tempfile.TemporaryDirectory() as cache:
+                os.environ["PHYSDSL_CACHE_DIR"] = cache
+                res = _run_child(name, cmd, args.timeout)
+        else:
+            res = _run_child(name, cmd, args.timeout)
         res.setdefault("seconds", time.perf_counter() - t0)
         res["load"] = " ".join(f"{x:.1f}" for x in os.getloadavg())
         results.append(res)
@@ -349,9 +498,14 @@ def _print_lines(r: dict) -> None:
     n = r["case"]
     if "error" in r:
         print(f"error.{n}: {r['error']}", flush=True)
+        if "profile" in r:
+            print(f"wall_s.{n}: {r['wall_s']:.0f}\ncpu_s.{n}: {r['cpu_s']:.0f}")
+            _print_profile(r)
         return
     if "named_all" in r:
         _print_refine(r)
+    if "profile" in r:
+        _print_profile(r)
     if "score_rank" not in r:
         print(f"load_average.{n}: {r['load']}", flush=True)
         return
@@ -375,6 +529,18 @@ def _print_lines(r: dict) -> None:
           f"{r['seconds_score']:.0f}, confirm {r['seconds_confirm']:.0f})")
     print(f"cpu_seconds.{n}: {r['cpu_seconds']:.0f}")
     print(f"load_average.{n}: {r['load']}", flush=True)
+
+
+def _print_profile(r: dict) -> None:
+    """``--profile``'s stage lines and the per-case figures of ``--all``."""
+    n = r["case"]
+    for k, (w, c, comp, calls) in sorted(r["profile"].items(), key=lambda kv: -kv[1][0]):
+        print(f"profile.{k.replace(' ', '_')}.{n}: wall {w:.1f} s, cpu {c:.1f} s, "
+              f"compile {comp:.1f} s, calls {calls}")
+    print(f"compile_s.{n}: {r['compile_s']:.1f}")
+    print(f"peak_rss_mb.{n}: {r['peak_rss_mb']:.0f}")
+    if "named_all" in r:
+        print(f"named.{n}: {r['named_all']}", flush=True)
 
 
 def _false_positive_summary(results: list[dict]) -> str:
