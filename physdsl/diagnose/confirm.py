@@ -17,6 +17,7 @@ from .edits import Draft, unknown_key, unknown_keys
 from .evidence import laplace_log_evidence
 from .lfo import LFO_FRACTION, cutoff as lfo_cutoff, lfo_points
 from .loo import combined_loo, sum_se
+from .ordering import doubtful_twin
 from .sensor_terms import start_value
 from .workflow import check_model, point_estimate
 
@@ -71,6 +72,8 @@ def confirm(model, idata, ranked: list[Ranked], k: int, base_rms: float, echo=No
     # a sensor fault is refitted where it leads the score tests (on top of the effects' refits)
     first = next((r for r in ranked if not r.same_as), None)
     for r in ranked:
+        if r.same_as and doubtful_twin(r, ranked):
+            r.same_as = None  # refitted on its own: the twins may part at a finite strength
         if r.same_as or (r.kind != "effect" and r is not first):
             continue
         explained = any(t.consistent_after for t in ranked)

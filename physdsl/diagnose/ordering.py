@@ -32,6 +32,18 @@ def mark_twins(ranked: list[Ranked], directions: dict) -> None:
     _material_first(ranked)
 
 
+def doubtful_twin(r: Ranked, ranked: list[Ranked]) -> bool:
+    """Whether a twin (``same_as``) of another law must be refitted after all: the columns
+    coincide at the off value, but its representative's refit left systematic residuals, so
+    the two may part at a finite strength (a ball sliding at constant speed is slowed alike by
+    quadratic drag and by sliding friction, until friction has spun it up to rolling). Twins
+    of the same law (a material and its pairs) and twins of a representative that explains
+    the misfit (linear drag on a pendulum's bob and joint damping) stay skipped."""
+    rep = next((t for t in ranked if t.key == r.same_as), None)
+    return (rep is not None and rep.effect != r.effect and rep.rms_after is not None
+            and rep.consistent_after is False)
+
+
 def _material_first(ranked: list[Ranked]) -> None:
     """In a group of twins, a material-level candidate (one coefficient for every pair of a
     table) represents the group: it explains the data alike and is the physically plainer
