@@ -16,7 +16,7 @@ from ..diagnose.workflow import point_estimate
 from ..errors import UsageError
 from .distil import MAX_TERMS, learned_samples, supports
 from .law import Law, refit_law
-from .learn import Fit, fit_residual, fitted, target_kind
+from .learn import HIDDEN, Fit, fit_residual, fitted, target_kind
 from .phys_text import declaration
 from .plot import plot_learned
 from .terms import TERMS, coefficient_unit
@@ -63,6 +63,8 @@ def pointed_target(scene, report) -> str:
 
 
 def _log_z(fit: Fit) -> float | None:
+    if fit.log_z is not None:
+        return fit.log_z
     try:
         return laplace_log_evidence(fit.model, fit.idata)
     except (np.linalg.LinAlgError, FloatingPointError, ValueError):
@@ -135,7 +137,7 @@ def verdict(res: Beyond) -> str:
 
 
 def beyond_library(model, idata, report, outdir, *, target: str | None = None,
-                   hidden: int = 16, center=(0.0, 0.0, 0.0), library: dict | None = None,
+                   hidden: int = HIDDEN, center=(0.0, 0.0, 0.0), library: dict | None = None,
                    seed: int = 0, echo=print) -> Beyond:
     """Learn a residual force on ``target`` (default: where the check points), distil it and
     refit the law; write beyond.json, law.phys, scene.phys and learned.png into ``outdir``.

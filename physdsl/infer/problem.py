@@ -54,6 +54,18 @@ def _functions(model):
     def to_constrained(x, data):
         return constrain_fn(model.numpyro_model, (data,), {}, unravel(x), return_deterministic=True)
 
+    with_residuals, neg_log_prior = least_squares_parts(model, unravel)
+    if not (model.least_squares and dim <= FORWARD_MODE_MAX):
+        return safe_logdensity(logdensity), to_constrained, dim, None, None
+    return (safe_logdensity(logdensity), to_constrained, dim, gauss_newton(with_residuals),
+            jax.hessian(neg_log_prior))
+
+
+def least_squares_parts(model, unravel):
+    """(with_residuals (x, data) -> (log density, standardised residuals) from one rollout,
+    neg_log_prior (x)) in the flat unconstrained space ``unravel`` reads: what a Gauss-Newton
+    matrix is made of (``base.gauss_newton``; also used beyond ``FORWARD_MODE_MAX`` unknowns by
+    ``discover.learn``, which trains a network's weights so)."""
     def neg_log_prior(x):
         return potential_energy(model.prior_values, (), {}, unravel(x))
 
@@ -64,10 +76,7 @@ def _functions(model):
         return (sum((jnp.sum(v) for v in ll.values()), -neg_log_prior(x)),
                 model.standardized_residuals(values, preds, data))
 
-    if not (model.least_squares and dim <= FORWARD_MODE_MAX):
-        return safe_logdensity(logdensity), to_constrained, dim, None, None
-    return (safe_logdensity(logdensity), to_constrained, dim, gauss_newton(with_residuals),
-            jax.hessian(neg_log_prior))
+    return with_residuals, neg_log_prior
 
 
 def unconstrained_layout(model) -> dict:
