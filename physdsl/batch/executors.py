@@ -3,6 +3,8 @@
 An executor takes a function and its argument and returns a ``concurrent.futures.Future``, so
 the batch waits on either kind with the standard library's ``wait``/``as_completed``:
 
+- ``InlineExecutor``: this process, one job at a time (the future is done when submitted). No
+  start-up cost: what a diagnosis's refits use by default (see ``refits``).
 - ``LocalExecutor``: a process pool on this machine (``spawn``: JAX does not survive ``fork``).
   No set-up. A worker that dies breaks the pool: its jobs are reported failed, and a restarted
   batch runs them again.
@@ -15,11 +17,13 @@ from __future__ import annotations
 import multiprocessing
 import os
 from concurrent.futures import Future, ProcessPoolExecutor
-from typing import Any, Callable, Protocol
+from contextlib import contextmanager
+from typing import Any, Callable, Iterator, Protocol
 
+from ..diagnose import refit_task
 from ..errors import UsageError
 
-EXECUTORS = ("local", "ray")
+EXECUTORS = ("local", "ray", "inline")
 
 
 class Executor(Protocol):
@@ -33,6 +37,27 @@ class Executor(Protocol):
     def describe(self) -> dict: ...
 
     def shutdown(self, cancel: bool = False) -> None: ...
+
+
+class InlineExecutor:
+    """This process: ``fn(arg)`` runs when submitted (its error is the future's exception)."""
+
+    name = "inline"
+    slots = 1
+
+    def submit(self, fn: Callable[[Any], Any], arg: Any) -> Future:
+        future: Future = Future()
+        try:
+            future.set_result(fn(arg))
+        except Exception as ex:  # noqa: BLE001 - the caller reads it from the future
+            future.set_exception(ex)
+        return future
+
+    def describe(self) -> dict:
+        return {"executor": self.name, "workers": 1}
+
+    def shutdown(self, cancel: bool = False) -> None:
+        pass
 
 
 class LocalExecutor:
@@ -120,8 +145,9 @@ def _connect(ray, address: str | None, workers: int | None) -> None:
 def check_executor(name: str, address: str | None = None) -> None:
     """Refuse an unknown executor, or an address without Ray (before anything runs)."""
     if name not in EXECUTORS:
-        raise UsageError(f"unknown executor '{name}'", hint="local (default) or ray")
-    if name == "local" and address:
+        raise UsageError(f"unknown executor '{name}'",
+                         hint="local (a process pool), ray, or inline (this process)")
+    if name != "ray" and address:
         raise UsageError("--address goes with --executor ray",
                          hint="add --executor ray, or leave --address out")
 
@@ -130,4 +156,24 @@ def make_executor(name: str, address: str | None = None, workers: int | None = N
                   retries: int = 3) -> Executor:
     """The executor called ``name`` (``local`` or ``ray``)."""
     check_executor(name, address)
+    if name == "inline":
+        return InlineExecutor()
     return LocalExecutor(workers) if name == "local" else RayExecutor(address, workers, retries)
+
+
+@contextmanager
+def refits_on(name: str = "inline", address: str | None = None,
+              workers: int | None = None) -> Iterator[None]:
+    """Within this block, a diagnosis runs its first candidate refits on the executor
+    ``name`` (``inline``: here, one after another, the default: on a machine of few cores
+    the workers' start-up and tracing cost more than they save, see docs/scale.md)."""
+    check_executor(name, address)
+    if name == "inline":
+        yield
+        return
+    pool = make_executor(name, address, workers)
+    try:
+        with refit_task.submitting(pool.submit):
+            yield
+    finally:
+        pool.shutdown()

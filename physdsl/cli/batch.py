@@ -15,7 +15,7 @@ SCENES = typer.Option(..., "--scenes", metavar="GLOB",
                       help="Scene files, a quoted glob such as 'throws/*/scene.phys' (** spans "
                            "folders; repeatable). One job per file.")
 OUT = typer.Option(..., "-o", "--out", help="Batch folder: OUT/<job>/ per scene, OUT/batch.json.")
-EXECUTOR = typer.Option("local", "--executor", help="local (a process pool here) or ray.")
+EXECUTOR = typer.Option("local", "--executor", help="local (a process pool here), ray, or inline (this process, one job at a time).")
 ADDRESS = typer.Option(None, "--address", metavar="HOST:PORT",
                        help="The Ray cluster's head (with --executor ray; none: start Ray here).")
 WORKERS = typer.Option(None, "--workers", min=1,

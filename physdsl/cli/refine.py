@@ -6,6 +6,7 @@ from typing import List, Optional
 
 import typer
 
+from .diagnose import REFIT_ADDRESS, REFIT_EXECUTOR, REFIT_WORKERS
 from .paths import ALLOW_PATH
 
 
@@ -33,17 +34,22 @@ def register(app: typer.Typer) -> None:
                                            "flag it is only reported)."),
         learned: bool = typer.Option(True, "--learned/--no-learned", help="Learn a force where the "
                                      "library explains nothing, and report it (round-k/beyond/)."),
+        executor: str = REFIT_EXECUTOR, workers: Optional[int] = REFIT_WORKERS,
+        address: Optional[str] = REFIT_ADDRESS,
     ) -> None:
         """The diagnosis loop: adds, swaps and drops effects until none improves the evidence."""
         from .. import api
+        from ..batch.executors import check_executor, refits_on
         from ..infer import get_backend
 
         get_backend(backend)  # an unknown backend before anything runs
-        rounds = api.refine(scene, out, max_rounds=max_rounds, backend=backend, chains=chains,
-                            warmup=warmup, samples=samples, seed=seed, force=force,
-                            confirm_top=confirm, revise=tuple(revise), echo=typer.echo,
-                            progress=True,  # each round's fit: its stages on stderr
-                            allow_learned=allow_learned, learned=learned)
+        check_executor(executor, address)
+        with refits_on(executor, address, workers):
+            rounds = api.refine(scene, out, max_rounds=max_rounds, backend=backend, chains=chains,
+                                warmup=warmup, samples=samples, seed=seed, force=force,
+                                confirm_top=confirm, revise=tuple(revise), echo=typer.echo,
+                                progress=True,  # each round's fit: its stages on stderr
+                                allow_learned=allow_learned, learned=learned)
         typer.echo("\nround  action   effect                             RMS (noise units)   ELPD")
         for r in rounds:
             add = f"{r.added['effect']} on {r.added['target']}" if r.added else "-"

@@ -9,21 +9,18 @@ import time
 import numpy as np
 
 from ..compile import Model
-from ..errors import PhysError
 from ..infer.fit import quick_fit
 from .candidates import Candidate
 from .diagnosis import Ranked, Refit
-from .edits import Draft, unknown_key, unknown_keys
-from .evidence import laplace_log_evidence
+from . import refit_task
+from .edits import Draft, _base_dir, unknown_key, unknown_keys
 from .lfo import LFO_FRACTION, cutoff as lfo_cutoff, lfo_points
-from .loo import combined_loo, sum_se
+from .loo import combined_loo
 from .ordering import doubtful_twin
 from .sensor_terms import start_value
-from .workflow import check_model, point_estimate
+from .workflow import point_estimate
 
-# what a refit may raise without ending the diagnosis: user-facing errors (model, inference)
-# and numerical failures of the fit (non-positive-definite Laplace Hessian)
-REFIT_FAILURES = (PhysError, np.linalg.LinAlgError, FloatingPointError)
+REFIT_FAILURES = refit_task.REFIT_FAILURES  # what a refit may raise without ending the diagnosis
 EXTRA_REFITS = 2  # further candidates refitted while no refit has explained the misfit
 
 
@@ -71,6 +68,7 @@ def confirm(model, idata, ranked: list[Ranked], k: int, base_rms: float, echo=No
     done = 0
     # a sensor fault is refitted where it leads the score tests (on top of the effects' refits)
     first = next((r for r in ranked if not r.same_as), None)
+    ahead = submit_first(base, ranked, k, first)  # on an executor: the first refits at once
     for r in ranked:
         if r.same_as and doubtful_twin(r, ranked):
             r.same_as = None  # refitted on its own: the twins may part at a finite strength
@@ -83,7 +81,11 @@ def confirm(model, idata, ranked: list[Ranked], k: int, base_rms: float, echo=No
         echo(f"  refit {done}: with {r.effect} on {r.target}")
         t0 = time.perf_counter()
         try:
-            refit(base, r, refit_start(model, idata, r.candidate, r.estimate))
+            if id(r) in ahead:
+                drafted, future = ahead.pop(id(r))
+                apply(base, r, refit_task.result(future), drafted)
+            else:
+                refit(base, r, refit_start(model, idata, r.candidate, r.estimate))
             echo(f"    {evidence_text(r)} ({time.perf_counter() - t0:.0f} s)")
         except REFIT_FAILURES as err:
             r.note = f"refit failed: {getattr(err, 'message', None) or err}"
@@ -106,38 +108,52 @@ def evidence_text(r: Ranked) -> str:
 def refit(base: Baseline, r: Ranked, start: dict | None = None) -> None:
     """Fit the scene with ``r.candidate`` added (first chain from ``start``) and fill ``r``'s
     comparison fields; ``r.refit`` keeps the scene and its compiled Model."""
-    scene, cand = base.model.scene, r.candidate
-    draft = base.draft.with_candidate(cand)
+    draft = base.draft.with_candidate(r.candidate)
     new = Model(draft.scene)
-    r.refit = Refit(draft, new)
-    fit = quick_fit(new, start=start)
-    if fit.attrs.get("fit_note"):
-        r.note = fit.attrs["fit_note"]
-    rep = check_model(new, fit)
-    r.elpd_points = np.asarray(combined_loo(fit).loo_i) - np.asarray(base.loo.loo_i)
-    r.delta_elpd, r.delta_elpd_se = float(r.elpd_points.sum()), sum_se(r.elpd_points)
-    if base.lfo is not None:
-        new_cut = quick_fit(Model(new.scene, until=base.cutoff), start=start)
-        r.lfo_points = lfo_points(new, new_cut, base.cutoff) - base.lfo
-        r.delta_lfo = float(r.lfo_points.sum())
-    r.rms_before, r.rms_after = base.rms, float(rep.rms_sigma)
-    r.log_evidence = laplace_log_evidence(new, fit)
-    r.consistent_after = rep.consistent
-    r.fitted = fitted_summary(new, fit, unknown_key(scene, cand), unknown_keys(scene, cand))
+    apply(base, r, refit_task.measure(new, task(base, r, draft, start)), draft, new)
+
+
+def task(base: Baseline, r: Ranked, draft: Draft, start: dict | None) -> refit_task.RefitTask:
+    """``r``'s refit as plain values (``refit_task.RefitTask``), to run here or on a worker."""
+    scene, cand = base.model.scene, r.candidate
+    return refit_task.RefitTask(
+        draft.text(), str(scene.path or "<string>"), str(_base_dir(scene)), start,
+        np.asarray(base.loo.loo_i), base.lfo, base.cutoff, base.rms,
+        unknown_key(scene, cand), tuple(unknown_keys(scene, cand)), refit_task.current_cache())
+
+
+def apply(base: Baseline, r: Ranked, out: dict, draft: Draft, new=None) -> None:
+    """Fill ``r``'s comparison fields from a refit's measures (``refit_task.measure``)."""
+    r.refit = Refit(draft, new if new is not None else Model(draft.scene))
+    if out["note"]:
+        r.note = out["note"]
+    for name in ("elpd_points", "delta_elpd", "delta_elpd_se", "lfo_points", "delta_lfo",
+                 "rms_before", "rms_after", "log_evidence", "consistent_after", "fitted",
+                 "confirmed"):
+        setattr(r, name, out[name])
     r.snippet = snippet(base.text(), draft.text())
-    r.confirmed = bool(r.delta_elpd > 2 * max(r.delta_elpd_se, 1.0)
-                       and (r.delta_lfo is None or r.delta_lfo > 0)
-                       and r.rms_after < 0.9 * base.rms)
 
 
-def fitted_summary(model, fit, key: str, keys: list[str]) -> dict:
-    """The added strength's median and 90% interval (``key``), the medians of all it adds
-    (``keys``) and the most likely draw of every unknown (``point``)."""
-    return {"name": key, "median": float(np.median(fit.posterior[key].values)),
-            "values": {k: float(np.median(fit.posterior[k].values)) for k in keys},
-            "q5": float(np.quantile(fit.posterior[key].values, 0.05)),
-            "q95": float(np.quantile(fit.posterior[key].values, 0.95)),
-            "point": {k: np.asarray(v).tolist() for k, v in point_estimate(model, fit).items()}}
+def submit_first(base: Baseline, ranked: list[Ranked], k: int, first) -> dict:
+    """Where ``refit_task.submitting`` set an executor: the refits ``confirm`` makes whatever
+    they show (a leading sensor fault, the first ``k`` distinct effects) submitted at once, by
+    the row's id -> (draft, future); {} when refits run here."""
+    submit = refit_task.submitter()
+    if submit is None:
+        return {}
+    picks = [r for r in ranked if not r.same_as and (r.kind == "effect" or r is first)]
+    effects = [r for r in picks if r.kind == "effect"][:k]
+    out = {}
+    for r in picks:
+        if r.kind == "effect" and r not in effects:
+            continue
+        try:
+            draft = base.draft.with_candidate(r.candidate)
+            start = refit_start(base.model, base.idata, r.candidate, r.estimate)
+        except REFIT_FAILURES:
+            continue  # refitted here by the loop, which reports the failure
+        out[id(r)] = (draft, submit(refit_task.run, task(base, r, draft, start)))
+    return out
 
 
 def refit_start(model, idata, cand: Candidate, estimate: float | None) -> dict:
