@@ -19,6 +19,7 @@ naive scene is then the whole physics); prints ``proposed.CASE.SEED`` and
 ``false_positive_rate: x/N`` (a learned term proposed where nothing is missing).
 
 Run: .venv/bin/python benchmarks/discovery.py [--case sqrt_drag] [--mode laws|no-effect]
+[--source mujoco] [--no-library]
 """
 from __future__ import annotations
 
@@ -53,7 +54,7 @@ def law_found(case, res) -> bool:
     return all(lo <= case.law[t] <= hi for t, (_, lo, hi) in res.law["coefficients"].items())
 
 
-def run_case(name: str, folder: Path, echo, source: str = "physdsl") -> dict:
+def run_case(name: str, folder: Path, echo, source: str = "physdsl", library: bool = True) -> dict:
     case = CASES[name]
     t0, c0 = time.time(), time.process_time()
     if source == "mujoco":
@@ -65,7 +66,7 @@ def run_case(name: str, folder: Path, echo, source: str = "physdsl") -> dict:
     idata = quick_fit(model)
     report = physdsl.check(model, idata)
     echo(f"{name}: naive {report.rms_sigma:.2f}σ")
-    library = library_best(model, idata, echo)
+    library = library_best(model, idata, echo) if library else None
     echo(f"{name}: library best {library}")
     res = physdsl.beyond_library(model, idata, folder / "beyond", report=report,
                                  library=library, target=case.target, center=case.center,
@@ -117,6 +118,8 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=None)
     ap.add_argument("--source", choices=["physdsl", "mujoco"], default="physdsl",
                     help="who simulates the hidden law (mujoco: xfrc_applied / qfrc_applied)")
+    ap.add_argument("--no-library", action="store_true",
+                    help="skip the diagnosis's library refits (rms_library None): the costly part")
     args = ap.parse_args()
     folder = args.out or Path(tempfile.mkdtemp(prefix="physdsl-discovery-"))
     echo = lambda s: print(s, file=sys.stderr, flush=True)  # noqa: E731
@@ -126,7 +129,11 @@ def main() -> None:
     else:
         results = {}
         for name in args.case or sorted(CASES):
-            results.update(run_case(name, folder / name, echo, args.source))
+            case_results = run_case(name, folder / name, echo, args.source,
+                                    not args.no_library)
+            for k, v in case_results.items():  # each case as it ends (runs are long)
+                print(f"{k}: {v}", flush=True)
+            print(f"load: {os.getloadavg()[0]:.1f}", flush=True)
     for k, v in results.items():
         print(f"{k}: {v}", flush=True)
     print(f"load: {os.getloadavg()[0]:.1f}")
