@@ -71,10 +71,11 @@ def cartpole(seeds: int, duration: float, swingup: bool = True) -> None:
     print(f"wall_s.cartpole{'' if swingup else '_balance'}: {time.perf_counter() - t0:.1f}")
 
 
-def double_cartpole(seeds: int) -> None:
+def double_cartpole(seeds: int, compare: int | None = None) -> None:
     trials = _script(EXAMPLES / "control_double_cartpole" / "trials.py")
     t0 = time.perf_counter()
-    for name, value in trials.trials(seeds).items():
+    for name, value in trials.trials(seeds, compare=seeds if compare is None else compare
+                                     ).items():
         print(f"{name}: {value:.4g}")
     print(f"wall_s.double_cartpole: {time.perf_counter() - t0:.1f}")
 
@@ -94,6 +95,8 @@ def main() -> None:
                                            "double_cartpole", "experiment_cart"))
     parser.add_argument("--seeds", type=int, default=10)
     parser.add_argument("--duration", type=float, default=3.0, help="balance runs' length, s")
+    parser.add_argument("--compare", type=int, default=None,
+                        help="double cart-pole: seeds also run without refits (default all)")
     args = parser.parse_args()
     print(f"load_before: {os.getloadavg()[0]:.1f}")
     if args.only in (None, "ball"):
@@ -105,7 +108,7 @@ def main() -> None:
     if args.only in (None, "cartpole_balance"):
         cartpole(args.seeds, args.duration, swingup=False)
     if args.only in (None, "double_cartpole"):
-        double_cartpole(args.seeds)
+        double_cartpole(args.seeds, args.compare)
     if args.only in (None, "experiment_cart"):
         experiment_cart(min(args.seeds, 4))
     print(f"load_after: {os.getloadavg()[0]:.1f}")

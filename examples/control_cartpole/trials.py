@@ -29,7 +29,7 @@ HOLD = 5.0  # s: a swing-up succeeds when the pole stays within tolerance over t
 def trials(seeds: int = 10, duration: float = 3.0, noise: float = 1e-4) -> dict[str, float]:
     """Balance figures, by name (``mpc_success_rate.cartpole_balance`` and friends)."""
     controller = mpc.Controller(physdsl.compile(HERE / "cartpole.phys"))
-    held, errors, first_errors, ms, cost = [], [], [], [], {10: [], 0: []}
+    held, errors, first_errors, ms, cpu, cost = [], [], [], [], [], {10: [], 0: []}
     for seed in range(seeds):
         tilt = np.random.default_rng(seed).uniform(-0.08, 0.08)
         for every in (10, 0):
@@ -43,7 +43,7 @@ def trials(seeds: int = 10, duration: float = 3.0, noise: float = 1e-4) -> dict[
                 held.append(run.held())
                 first_errors.append(abs(mass[1] - PLANT_MASS) / PLANT_MASS)
                 errors.append(abs(mass[-1] - PLANT_MASS) / PLANT_MASS)
-                ms.extend(run.step_ms[1:])
+                ms.extend(run.step_ms[1:]), cpu.extend(run.step_cpu_ms[1:])
     return {"mpc_success_rate.cartpole_balance": float(np.mean(held)),
             "param_error_prior.cartpole_balance": abs(float(
                 controller.transition.physical_values(controller.transition.centre[
@@ -52,6 +52,7 @@ def trials(seeds: int = 10, duration: float = 3.0, noise: float = 1e-4) -> dict[
             "param_error_final.cartpole_balance": float(np.median(errors)),
             "mpc_step_ms.cartpole_balance": float(np.median(ms)),
             "mpc_step_ms_p90.cartpole_balance": float(np.percentile(ms, 90)),
+            "mpc_step_cpu_ms.cartpole_balance": float(np.median(cpu)),
             "mpc_period_ms.cartpole_balance": 1e3 * controller.transition.period,
             "mpc_cost_refit.cartpole_balance": float(np.mean(cost[10])),
             "mpc_cost_no_refit.cartpole_balance": float(np.mean(cost[0]))}
@@ -74,7 +75,7 @@ def swingup_trials(seeds: int = 10, duration: float = 8.0, noise: float = 1e-4,
     controller = mpc.Controller(physdsl.compile(HERE / "swingup.phys"))
     tr = controller.transition
     (tolerance,) = [h.within for h in controller.holds if h.joint == "pole_hinge"]
-    held, up, errors, ms, cost, held_fixed = [], [], [], [], {every: [], 0: []}, []
+    held, up, errors, ms, cpu, cost, held_fixed = [], [], [], [], [], {every: [], 0: []}, []
     compare = seeds if compare is None else compare
     for seed in range(first, first + seeds):
         tilt = np.random.default_rng(seed).uniform(-0.05, 0.05)
@@ -91,11 +92,13 @@ def swingup_trials(seeds: int = 10, duration: float = 8.0, noise: float = 1e-4,
                       f"cost {run.cost:.1f}", flush=True)
                 continue
             held.append(ok), up.append(since), ms.extend(run.step_ms[1:])
+            cpu.extend(run.step_cpu_ms[1:])
             final = run.estimates[-1]["values"]
             errors.append(max(abs(final["pole.mass"] - PLANT_MASS) / PLANT_MASS, abs(
                 final["joint_damping@cart_slider.coefficient"] - PLANT_DAMPING) / PLANT_DAMPING))
             print(f"seed {seed}: upright from {since:.2f} s, held {ok}, cost {run.cost:.1f}, "
-                  f"{np.median(run.step_ms[1:]):.0f} ms per step, mass "
+                  f"{np.median(run.step_ms[1:]):.0f} ms per step "
+                  f"({np.median(run.step_cpu_ms[1:]):.0f} ms CPU), mass "
                   f"{final['pole.mass']:.4f} kg, damping "
                   f"{final['joint_damping@cart_slider.coefficient']:.4f} N s/m", flush=True)
     return {"mpc_success_rate.cartpole": float(np.mean(held)),
@@ -105,6 +108,7 @@ def swingup_trials(seeds: int = 10, duration: float = 8.0, noise: float = 1e-4,
             "param_error_final_max.cartpole": float(np.max(errors)),
             "mpc_step_ms.cartpole": float(np.median(ms)),
             "mpc_step_ms_p90.cartpole": float(np.percentile(ms, 90)),
+            "mpc_step_cpu_ms.cartpole": float(np.median(cpu)),
             "mpc_period_ms.cartpole": 1e3 * tr.period,
             "mpc_cost_refit.cartpole": float(np.mean(cost[every])),
             "mpc_cost_no_refit.cartpole": float(np.mean(cost[0] or [np.nan]))}

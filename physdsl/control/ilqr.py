@@ -7,7 +7,10 @@ rolls the feedback policy forward at several step lengths at once (``vmap``), ke
 cheapest finite one if it beats the unchanged plan (so the cost never rises, and a step that
 overflows is never taken). The whole solve is one
 traced function of (x0, W, params): a receding-horizon controller compiles it once and
-warm-starts each step from the previous plan shifted by one.
+warm-starts each step from the previous plan shifted by one. Given that plan's trajectory as
+well (``guess``), the first iteration linearises along it instead of rolling the plan out
+again from the new state, and its forward passes (step length 0 included: the old plan with
+the feedback's correction) start from the new state: one sequential rollout per iteration.
 """
 from __future__ import annotations
 
@@ -39,6 +42,15 @@ def screen(f, stage, final, x0, W, candidates):
     plans = jnp.concatenate([W[None], candidates])
     costs = jax.vmap(lambda w: total_cost(stage, final, rollout(f, x0, w), w))(plans)
     return plans[jnp.argmin(jnp.where(jnp.isfinite(costs), costs, jnp.inf))]
+
+
+def screen_rollout(f, stage, final, x0, W, candidates):
+    """``screen``'s choice and its trajectory from ``x0`` (a warm start for ``solve``)."""
+    plans = jnp.concatenate([W[None], candidates])
+    Xs = jax.vmap(lambda w: rollout(f, x0, w))(plans)
+    costs = jax.vmap(lambda X, w: total_cost(stage, final, X, w))(Xs, plans)
+    best = jnp.argmin(jnp.where(jnp.isfinite(costs), costs, jnp.inf))
+    return plans[best], Xs[best]
 
 
 def _positive(Q):
@@ -79,35 +91,50 @@ def _backward(f, stage, final, X, W):
     return ks, Ks
 
 
-def _forward(f, X, W, ks, Ks, alpha):
-    """The trajectory and plan of the feedback policy at step length ``alpha``."""
+def _forward(f, x0, X, W, ks, Ks, alpha):
+    """The trajectory from ``x0`` and the plan of the feedback policy at step length
+    ``alpha`` around the trajectory ``X`` and plan ``W``."""
     def body(x, e):
         xk, wk, k, K = e
         w = wk + alpha * k + K @ (x - xk)
         return f(x, w), (x, w)
 
-    last, (xs, ws) = jax.lax.scan(body, X[0], (X[:-1], W, ks, Ks))
+    last, (xs, ws) = jax.lax.scan(body, x0, (X[:-1], W, ks, Ks))
     return jnp.concatenate([xs, last[None]]), ws
 
 
-def solve(f, stage, final, x0, W, iterations: int):
+def solve(f, stage, final, x0, W, iterations: int, guess=None):
     """(plan (H, m), trajectory (H + 1, n), cost) after ``iterations`` iLQR iterations from
-    the plan ``W``; ``f(x, w)``, ``stage(x, w)`` and ``final(x)`` pure and differentiable."""
-    X = rollout(f, x0, W)
-    lengths = jnp.asarray(STEP_LENGTHS, dtype=X.dtype)
+    the plan ``W``; ``f(x, w)``, ``stage(x, w)`` and ``final(x)`` pure and differentiable.
+    ``guess``: a trajectory (H + 1, n) near ``W``'s from ``x0`` (the last plan's, shifted);
+    the first iteration then starts from it and keeps its cheapest step, length 0 included."""
+    lengths = jnp.asarray(STEP_LENGTHS, dtype=x0.dtype)
 
-    def iteration(carry, _):
-        W, X, cost = carry
+    def step(W, X, x0, lengths):
         ks, Ks = _backward(f, stage, final, X, W)
-        Xs, Ws = jax.vmap(lambda a: _forward(f, X, W, ks, Ks, a))(lengths)
+        Xs, Ws = jax.vmap(lambda a: _forward(f, x0, X, W, ks, Ks, a))(lengths)
         costs = jax.vmap(lambda X, W: total_cost(stage, final, X, W))(Xs, Ws)
         costs = jnp.where(jnp.isfinite(costs) & jnp.all(jnp.isfinite(Ws), axis=(1, 2)),
                           costs, jnp.inf)
         best = jnp.argmin(costs)
-        better = costs[best] < cost
-        return (jnp.where(better, Ws[best], W), jnp.where(better, Xs[best], X),
-                jnp.where(better, costs[best], cost)), None
+        found = jnp.isfinite(costs[best])  # else keep the plan (all steps overflowed)
+        return (jnp.where(found, Ws[best], W), jnp.where(found, Xs[best], X),
+                jnp.where(found, costs[best], jnp.inf))
 
-    (W, X, cost), _ = jax.lax.scan(iteration, (W, X, total_cost(stage, final, X, W)), None,
-                                   length=iterations)
-    return W, X, cost
+    def iteration(carry, _):
+        W, X, cost = carry
+        Wn, Xn, new = step(W, X, X[0], lengths)
+        better = new < cost
+        return (jnp.where(better, Wn, W), jnp.where(better, Xn, X),
+                jnp.where(better, new, cost)), None
+
+    if guess is None:
+        X = rollout(f, x0, W)
+        carry = (W, X, total_cost(stage, final, X, W))
+    else:  # the first iteration along the guess, from x0; its best step is kept
+        W, X, cost = step(W, guess, x0, jnp.concatenate([lengths, jnp.zeros(1, x0.dtype)]))
+        carry = (W, X, cost)
+        iterations -= 1
+    if iterations > 0:
+        carry, _ = jax.lax.scan(iteration, carry, None, length=iterations)
+    return carry

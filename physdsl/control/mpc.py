@@ -7,7 +7,9 @@ refit with the last refit's Laplace approximation as prior, and the next plans u
 The scene's goal is the cost: each ``hold`` term (``JOINT.angle from .. to .. -> VALUE within
 TOL``) is a stage cost ``(e / TOL)^2`` averaged over the horizon (``e = q - VALUE`` for a slider,
 the chord ``2 sin((q - VALUE) / 2)`` for a hinge: the same near VALUE, periodic in the angle), the horizon's end
-weighing ``TERMINAL`` steps more (it stands for the future beyond the horizon), plus the
+weighing ``TERMINAL`` steps more (it stands for the future beyond the horizon) or, where the
+goal is an equilibrium (every joint held), the LQR cost-to-go there (``terminal.py``,
+recomputed after each refit), plus the
 effort ``weight * u^2 * period``. Forces are planned in the control prior's unconstrained space,
 so they stay within its bounds (``uniform(-10 N, 10 N)``).
 """
@@ -23,14 +25,14 @@ import numpy as np
 from ..compile import Model
 from ..errors import ModelError, UsageError
 from ..goal import Effort, Hold
-from . import ilqr
+from . import ilqr, terminal
 from .plant import Observation, Plant
 from .refit import CAPACITY, Memory, constrained_sd, map_fit
 from .transition import Transition, build_transition, control_bounds
 
-ITERATIONS = 2  # iLQR iterations per control period (warm-started)
+ITERATIONS = 1  # iLQR iterations per control period (warm-started from the shifted plan)
 FIRST_ITERATIONS = 10  # before the first force: a cold plan
-TERMINAL = 10.0  # the horizon's last state weighs as this many steps
+TERMINAL = 10.0  # without an LQR terminal cost, the horizon's last state weighs this many steps
 REFIT_EVERY = 10  # control periods between refits
 EFFORT_FLOOR = 1e-6  # per N^2 s: keeps the control Hessian positive without an effort term
 PUMP_PERIODS = (0.6, 0.9, 1.2, 1.6, 2.0)  # s: sine pushes screened before each solve
@@ -53,6 +55,7 @@ class MpcResult:
     cost: float = 0.0  # the goal's stage cost summed over the run
     hinges: tuple[bool, ...] = ()  # per joint: its coordinate is a periodic angle
     final_z: np.ndarray | None = None  # the last estimate, in the prior's unconstrained space
+    step_cpu_ms: np.ndarray | None = None  # (T,) the process's CPU time of each plan
 
     def hold_errors(self, settle: float = 0.0) -> list[float]:
         """Each hold term's largest error (its unit) from ``settle`` s to the end."""
@@ -72,7 +75,8 @@ class MpcResult:
 
 
 def goal_costs(transition: Transition, holds, weight: float, squash):
-    """(stage(x, w), final(x)) of the goal's hold and effort terms over one horizon."""
+    """(stage(x, w), miss(x)) of the goal's hold and effort terms over one horizon: the stage
+    cost and its hold part (``TERMINAL * miss`` is the fallback terminal cost)."""
     columns = jnp.asarray([transition.joints.index(h.joint) for h in holds], dtype=int)
     targets = jnp.asarray([h.value for h in holds])
     tolerance = jnp.asarray([h.within for h in holds])
@@ -89,7 +93,7 @@ def goal_costs(transition: Transition, holds, weight: float, squash):
         return (miss(x) + max(weight, EFFORT_FLOOR) * jnp.sum(u ** 2) * transition.period
                 + TAIL * jnp.sum(w ** 2))
 
-    return stage, lambda x: TERMINAL * miss(x)
+    return stage, miss
 
 
 def goal_terms(model: Model) -> tuple[tuple[Hold, ...], float]:
@@ -128,12 +132,14 @@ def pumping_plans(horizon: int, period: float, nu: int) -> np.ndarray:
 class Controller:
     """The compiled pieces of one scene's MPC: planner, refit, state reader."""
 
-    def __init__(self, model: Model, iterations: int = ITERATIONS, screen: bool = True):
+    def __init__(self, model: Model, iterations: int = ITERATIONS, screen: bool = True,
+                 lqr: bool = True):
         self.transition = tr = build_transition(model)
         self.holds, weight = goal_terms(model)
         self.squash = control_bounds(model, tr.controls)
-        stage, final = goal_costs(tr, self.holds, weight, self.squash)
+        stage, miss = goal_costs(tr, self.holds, weight, self.squash)
         self.stage = jax.jit(stage)
+        self.equilibrium = terminal.equilibrium(tr, self.holds, stage, self.squash) if lqr else None
 
         candidates = jnp.asarray(pumping_plans(tr.horizon, tr.period, tr.nu))
 
@@ -141,15 +147,37 @@ class Controller:
             prm = tr.params(z)
             return lambda x, w: tr.step(prm, x, self.squash(w))
 
-        def plan(x0, W, z, iterations):
-            f = dynamics(z)
-            if screen:  # the warm plan against fresh pumping pushes, then iLQR
-                W = ilqr.screen(f, stage, final, x0, W, candidates)
-            return ilqr.solve(f, stage, final, x0, W, iterations)
+        def final_cost(P, fallback):
+            """0.5 e^T P e (the LQR cost-to-go) plus ``fallback`` * TERMINAL stage misses."""
+            if self.equilibrium is None:
+                return lambda x: fallback * TERMINAL * miss(x)
 
-        self.plan = jax.jit(plan, static_argnums=3)
+            def final(x):
+                e = terminal.error(self.equilibrium, x)
+                return 0.5 * e @ P @ e + fallback * TERMINAL * miss(x)
+            return final
+
+        def plan(x0, W, X, z, end, iterations):
+            """iLQR from ``x0`` warm-started at the plan ``W`` and its trajectory ``X``."""
+            f, final = dynamics(z), final_cost(*end)
+            if screen:  # the warm plan against fresh pumping pushes, then iLQR
+                W, X = ilqr.screen_rollout(f, stage, final, x0, W, candidates)
+            return ilqr.solve(f, stage, final, x0, W, iterations, guess=X)
+
+        self.plan = jax.jit(plan, static_argnums=5)
         self.iterations = iterations
         self.fit = map_fit(tr)
+
+    def terminal(self, z, last=None):
+        """The plan's terminal-cost argument at physical unknowns ``z``: (P, 0.0) with the LQR
+        cost-to-go at the goal's equilibrium, else ``last`` (the previous one) or (0, 1.0):
+        the horizon's last state weighing ``TERMINAL`` steps."""
+        nx = self.transition.nx
+        if self.equilibrium is not None:
+            found = terminal.value_matrix(self.equilibrium, jnp.asarray(z), self.transition.nu)
+            if found is not None:
+                return jnp.asarray(found[0]), jnp.asarray(0.0)
+        return last if last is not None else (jnp.zeros((nx, nx)), jnp.asarray(1.0))
 
     def state(self, obs: Observation) -> np.ndarray:
         missing = [j for j in self.transition.joints
@@ -175,28 +203,32 @@ def run(model: Model, plant: Plant, duration: float, *, refit_every: int = REFIT
     x = ctl.state(obs)
     z = jnp.asarray(tr.centre[tr.index])
     W = jnp.zeros((tr.horizon, tr.nu))
+    X = jnp.tile(jnp.asarray(x), (tr.horizon + 1, 1))  # a first guess: staying put
+    end = ctl.terminal(z)
     for _ in range(FIRST_ITERATIONS // ctl.iterations):  # a cold plan (one compiled solve)
-        W, _, _ = ctl.plan(jnp.asarray(x), W, z, ctl.iterations)
+        W, X, _ = ctl.plan(jnp.asarray(x), W, X, z, end, ctl.iterations)
     memory = Memory.empty(tr.nx, tr.nu, CAPACITY)
     precision, first = jnp.eye(len(z)), 1.0  # the first refit's prior: the model's
-    times, states, forces, step_ms = [obs.t], [x], [], []
+    times, states, forces, step_ms, step_cpu = [obs.t], [x], [], [], []
     estimates = [_estimate(tr, 0, obs.t, z, None, 0.0)]
     cost = 0.0
     for k in range(steps):
-        start = time.perf_counter()
-        W, _, _ = ctl.plan(jnp.asarray(x), W, z, ctl.iterations)
+        start, cpu = time.perf_counter(), time.process_time()
+        W, X, _ = ctl.plan(jnp.asarray(x), W, X, z, end, ctl.iterations)
         u = np.asarray(ctl.squash(W[0]))
         if not np.all(np.isfinite(u)):
             raise ModelError(f"mpc: the plan at t = {obs.t:g} s is not finite (state "
                              f"{np.round(x, 4).tolist()}); nothing was sent to the plant",
                              hint="check the scene's physics at this state (`physdsl lint`)")
         step_ms.append(1e3 * (time.perf_counter() - start))
+        step_cpu.append(1e3 * (time.process_time() - cpu))
         cost += float(ctl.stage(jnp.asarray(x), W[0]))
         obs = plant.step(dict(zip(tr.targets, (float(v) for v in u))))
         x_next = ctl.state(obs)
         memory.add(x, u, x_next)
         x = x_next
         W = jnp.concatenate([W[1:], W[-1:]])  # the warm start of the next period
+        X = jnp.concatenate([X[1:], X[-1:]])
         times.append(obs.t), states.append(x), forces.append(u)
         if refit_every and tr.physical and (k + 1) % refit_every == 0:
             start = time.perf_counter()
@@ -204,13 +236,14 @@ def run(model: Model, plant: Plant, duration: float, *, refit_every: int = REFIT
                 z, memory.x, memory.u, memory.x_next, memory.mask, z, precision, first))
             first = 0.0
             memory.clear()
+            end = ctl.terminal(z, end)
             estimates.append(_estimate(tr, k + 1, obs.t, z, jnp.linalg.inv(precision),
                                        1e3 * (time.perf_counter() - start)))
         if on_step is not None:
             on_step(k, obs.t, x, u, z)
     return MpcResult(tr.joints, tr.targets, np.asarray(times), np.asarray(states),
                      np.asarray(forces).reshape(steps, tr.nu), np.asarray(step_ms), estimates,
-                     ctl.holds, cost, tr.hinges, np.asarray(z))
+                     ctl.holds, cost, tr.hinges, np.asarray(z), np.asarray(step_cpu))
 
 
 def _estimate(tr: Transition, step: int, t: float, z, cov, ms: float) -> dict:

@@ -13,7 +13,7 @@ import pytest
 
 import physdsl
 from physdsl.cli import main
-from physdsl.control import mpc, mpc_files
+from physdsl.control import mpc, mpc_files, terminal
 from physdsl.control.transition import build_transition
 from physdsl.errors import ModelError
 
@@ -57,6 +57,32 @@ def test_balance_held_and_mass_refitted(closed_loop):
     sd = r.estimates[-1]["sd"]["pole.mass"]
     assert last < 3 * sd  # the Laplace interval covers the plant's mass
     assert np.all(np.abs(r.forces) <= 10.0 + 1e-9)  # the control prior's bounds
+
+
+def test_terminal_cost_is_the_lqr_cost_to_go(controller):
+    """The goal (pole upright, cart at 0) is an equilibrium, so the horizon's terminal cost is
+    the LQR cost-to-go of the model linearised there: its gain holds the linearised pole, which
+    falls without it, and iLQR's first force from a small tilt over the 0.5 s horizon is the
+    LQR's (the horizon plus the cost-to-go is the infinite horizon: a terminal cost off by a
+    factor, or the stage cost's 10-step weight, gives another force)."""
+    tr, eq = controller.transition, controller.equilibrium
+    assert eq is not None
+    z = jnp.asarray(tr.centre[tr.index])
+    P, fallback = controller.terminal(z)
+    assert float(fallback) == 0.0
+    _, w = terminal.value_matrix(eq, z, tr.nu)
+    K = terminal.lqr_gain(eq, z, np.asarray(P), w)
+    _, A, B, *_ = (np.asarray(a) for a in eq.linearise(z, jnp.asarray(w)))
+    assert np.max(np.abs(np.linalg.eigvals(A))) > 1.05  # upright falls
+    assert np.max(np.abs(np.linalg.eigvals(A - B @ K))) < 0.999  # LQR holds it
+    x0 = eq.x.copy()
+    x0[tr.joints.index("pole_hinge")] += 2e-3
+    W, X = jnp.zeros((tr.horizon, tr.nu)), jnp.tile(jnp.asarray(x0), (tr.horizon + 1, 1))
+    for _ in range(4):
+        W, X, _ = controller.plan(jnp.asarray(x0), W, X, z, (P, fallback), controller.iterations)
+    lqr = w - K @ np.asarray(terminal.error(eq, jnp.asarray(x0)))
+    assert abs(float(lqr[0])) > 0.01  # a force worth comparing
+    assert np.allclose(np.asarray(W[0]), lqr, rtol=0.02), (W[0], lqr)
 
 
 def test_transition_matches_mujoco_at_the_plants_values(controller):

@@ -73,3 +73,18 @@ def test_at_the_top_of_the_cost_one_iteration_goes_most_of_the_way_down():
     assert np.all(np.isfinite(np.asarray(W)))
     assert float(X[-1, 0]) > np.pi / 2  # 10 cos x < 0: down from the top's 10
     assert float(cost) < 0.0
+
+
+def test_warm_start_from_another_states_trajectory_reaches_the_optimum_in_one_iteration():
+    """The receding-horizon warm start: the last plan's trajectory (here a rollout from another
+    state) as ``guess``. For linear dynamics and a quadratic cost the feedback policy around any
+    rollout is exact for every start, so one iteration from the new state is the optimum (up to
+    the regularisation), without a rollout of the old plan from it."""
+    x0, other, H = jnp.array([1.0, -0.5]), jnp.array([0.7, 0.2]), 20
+    W0 = 0.3 * jnp.sin(jnp.arange(H, dtype=float))[:, None]
+    guess = ilqr.rollout(f, other, W0)
+    W, X, cost = ilqr.solve(f, stage, final, x0, W0, iterations=1, guess=guess)
+    exact, _, best = ilqr.solve(f, stage, final, x0, jnp.zeros((H, 1)), iterations=3)
+    assert np.allclose(W, exact, rtol=1e-3, atol=1e-6)
+    assert np.allclose(X, ilqr.rollout(f, x0, W), atol=1e-12)
+    assert np.isclose(float(cost), float(best), rtol=1e-6)
