@@ -34,8 +34,9 @@ class Baseline:
         self.cutoff = lfo_cutoff(model)
         echo(f"  fitting the first {LFO_FRACTION:.0%} of the recording (leave-future-out baseline)")
         try:
-            self.lfo = lfo_points(model, quick_fit(Model(model.scene, until=self.cutoff)),
-                                  self.cutoff)
+            # started at the whole record's fit (a point: searched from there alone)
+            cut = quick_fit(Model(model.scene, until=self.cutoff), start=point_estimate(model, idata))
+            self.lfo = lfo_points(model, cut, self.cutoff)
         except REFIT_FAILURES:
             self.lfo = None  # leave-future-out unavailable: judged on ΔELPD and RMS alone
         self._text = None

@@ -25,6 +25,8 @@ from .intervals import add_robust, shown_posterior
 from . import posterior_data
 
 
+PLAIN = "plain"  # Settings.intervals of a fit that shows the model's intervals and makes no
+# robust ones (their residual models cost seconds per fit, the block check its refits)
 PASS_CHUNK = 64  # draws per call of the posterior pass: one compile for any number of
 # draws, memory bounded (a rollout's states per draw), and a progress bar that moves
 
@@ -53,8 +55,11 @@ def build_inference_data(model, problem, flat: np.ndarray, stats: dict, settings
     idata = posterior_data.from_dict(
         {"posterior": posterior, "posterior_predictive": preds, "observed_data": observed,
          "log_likelihood": loglik, "sample_stats": sample_stats}, dims=dims, coords=coords)
-    return add_robust(idata, model, problem, flat, constrained,  # + posterior_robust
-                      getattr(settings, "intervals", "robust"))
+    shown = getattr(settings, "intervals", "robust")
+    if shown == PLAIN:  # a fit only compared with others (``fit.quick_fit``): no sandwich
+        idata.attrs["intervals"] = "model"
+        return idata
+    return add_robust(idata, model, problem, flat, constrained, shown)  # + posterior_robust
 
 
 def posterior_pass(model, problem, flat: np.ndarray, on_chunk=None) -> tuple[dict, dict]:
