@@ -10,11 +10,11 @@ from .compliant import COMPLIANT_SETTINGS, CompliantSettings, compliant_forces, 
 from .detect import PAIRS, SHAPE_CODES, ContactPoints, contact_count, contact_margin, detect
 from .lcp import IP_SETTINGS, IPSettings, lcp_residual, lcp_solve
 from .step import (LCP_SETTINGS, ContactLCP, ContactStep, Impacts, LCPSettings, build_lcp,
-                   impacts, normal_target, restitution_threshold, solve_lcp_step)
+                   impact_time, impacts, normal_target, restitution_threshold, solve_lcp_step)
 
 __all__ = [
     "COMPLIANT_SETTINGS", "CompliantSettings", "ContactLCP", "ContactPoints", "ContactStep",
-    "IPSettings", "Impacts", "impacts",
+    "IPSettings", "Impacts", "impact_time", "impacts",
     "IP_SETTINGS", "LCPSettings", "LCP_SETTINGS", "PAIRS", "SHAPE_CODES", "build_lcp",
     "compliant_forces", "contact_count", "contact_margin", "damping_ratio", "detect",
     "lcp_residual", "lcp_solve", "normal_target", "restitution_threshold", "solve_lcp_step",

@@ -60,8 +60,9 @@ class Impacts(NamedTuple):
     gap_end: jnp.ndarray  # (C,) gap at the end of the step
 
 
-def impacts(e, vn_pre, vn_free, dist, h, settings: LCPSettings = LCP_SETTINGS) -> Impacts:
-    """Time-of-impact split of one step per contact (see module docstring).
+def impact_time(vn_pre, vn_free, dist, h):
+    """Per contact: (time of contact tau in [0, h], normal velocity there, does the gap close
+    within the step); 0 for a gap already closed.
 
     The normal velocity runs linearly from vn_pre to vn_free over the step; positions follow
     the semi-implicit Euler motion (gap d + h vn_free), so tau = d / -vn_free makes the split
@@ -70,8 +71,13 @@ def impacts(e, vn_pre, vn_free, dist, h, settings: LCPSettings = LCP_SETTINGS) -
     closes = dist + h * vn_free < 0
     approach = jnp.where(vn_free < 0, -vn_free, 1.0)
     tau = jnp.clip(jnp.where(closes, dist / approach, 0.0), 0.0, h)
+    return tau, vn_pre + (vn_free - vn_pre) / h * tau, closes
+
+
+def impacts(e, vn_pre, vn_free, dist, h, settings: LCPSettings = LCP_SETTINGS) -> Impacts:
+    """Time-of-impact split of one step per contact (see module docstring and ``impact_time``)."""
+    tau, v_hit, closes = impact_time(vn_pre, vn_free, dist, h)
     accel = (vn_free - vn_pre) / h
-    v_hit = vn_pre + accel * tau
     half = 0.5 * settings.restitution_threshold
     fade = jnp.clip((-v_hit - half) / half, 0.0, 1.0)
     # rebound, then the free acceleration for the rest of the step; a rebound that the
