@@ -88,6 +88,8 @@ def test_football_tie_proposes_a_throw_that_mujoco_then_decides(tmp_path):
     truth = json.loads((folder / "truth.json").read_text())
     model = Model(load(folder / "naive.phys"))
     diag = diagnose(model, fit(model), confirm_top=2)
+    print(diag.table())
+    print(diag.verdict)
     assert diag.winner.effect == "quadratic_drag", diag.verdict
     assert "Stokes" in diag.verdict and "physically implausible" in diag.verdict, diag.verdict
     refitted = {r.effect: r for r in diag.ranking if r.kind == "effect" and r.fitted}
