@@ -89,3 +89,17 @@ def test_refits_on_a_local_pool_give_the_same_numbers(fitted):
     for key in here:
         assert pool[key].delta_elpd == pytest.approx(here[key].delta_elpd, rel=1e-6)
         assert pool[key].rms_after == pytest.approx(here[key].rms_after, rel=1e-6)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["diagnose", "scene.phys", "-p", "run", "-o", "diag", "--executor", "dask"],
+     "unknown executor 'dask'"),
+    (["refine", "scene.phys", "-o", "ref", "--address", "127.0.0.1:6379"],
+     "--address goes with --executor ray"),
+])
+def test_refit_executor_usage_errors_exit_2(tmp_path, monkeypatch, capsys, args, message):
+    from physdsl.cli import main
+    monkeypatch.chdir(tmp_path)
+    assert main(args) == 2
+    assert message in capsys.readouterr().err
+    assert not any(tmp_path.iterdir())  # refused before anything was read or written
