@@ -62,11 +62,18 @@ def _positive(Q):
     return (vec * jnp.abs(lam)) @ vec.T + REGULARISATION * jnp.eye(Q.shape[0], dtype=Q.dtype)
 
 
-def _backward(f, stage, final, X, W):
-    """Feedforward steps k (H, m) and gains K (H, m, n) of the Riccati pass."""
+def _backward(f, stage, final, X, W, motion=None):
+    """Feedforward steps k (H, m) and gains K (H, m, n) of the Riccati pass; with ``motion``
+    (n,) the dynamics' Jacobians are the mean of those at ``X + motion`` and ``X - motion``."""
     n = X.shape[1]
-    AB = jax.vmap(lambda x, w: jax.jacfwd(lambda xw: f(xw[:n], xw[n:]))(jnp.concatenate([x, w]))
-                  )(X[:-1], W)  # one forward-mode pass for both Jacobians
+
+    def jac(x, w):  # one forward-mode pass for both Jacobians
+        return jax.jacfwd(lambda xw: f(xw[:n], xw[n:]))(jnp.concatenate([x, w]))
+
+    if motion is None:
+        AB = jax.vmap(jac)(X[:-1], W)
+    else:
+        AB = 0.5 * (jax.vmap(jac)(X[:-1] + motion, W) + jax.vmap(jac)(X[:-1] - motion, W))
     A, B = AB[:, :, :n], AB[:, :, n:]
     lx = jax.vmap(jax.grad(stage, 0))(X[:-1], W)
     lu = jax.vmap(jax.grad(stage, 1))(X[:-1], W)
@@ -103,15 +110,17 @@ def _forward(f, x0, X, W, ks, Ks, alpha):
     return jnp.concatenate([xs, last[None]]), ws
 
 
-def solve(f, stage, final, x0, W, iterations: int, guess=None):
+def solve(f, stage, final, x0, W, iterations: int, guess=None, motion=None):
     """(plan (H, m), trajectory (H + 1, n), cost) after ``iterations`` iLQR iterations from
     the plan ``W``; ``f(x, w)``, ``stage(x, w)`` and ``final(x)`` pure and differentiable.
     ``guess``: a trajectory (H + 1, n) near ``W``'s from ``x0`` (the last plan's, shifted);
-    the first iteration then starts from it and keeps its cheapest step, length 0 included."""
+    the first iteration then starts from it and keeps its cheapest step, length 0 included.
+    ``motion`` (n,): linearise the dynamics in motion (``_backward``): a smoothed Coulomb
+    friction's steep slope at rest is a damping the moving system never feels."""
     lengths = jnp.asarray(STEP_LENGTHS, dtype=x0.dtype)
 
     def step(W, X, x0, lengths):
-        ks, Ks = _backward(f, stage, final, X, W)
+        ks, Ks = _backward(f, stage, final, X, W, motion)
         Xs, Ws = jax.vmap(lambda a: _forward(f, x0, X, W, ks, Ks, a))(lengths)
         costs = jax.vmap(lambda X, W: total_cost(stage, final, X, W))(Xs, Ws)
         costs = jnp.where(jnp.isfinite(costs) & jnp.all(jnp.isfinite(Ws), axis=(1, 2)),

@@ -88,3 +88,32 @@ def test_warm_start_from_another_states_trajectory_reaches_the_optimum_in_one_it
     assert np.allclose(W, exact, rtol=1e-3, atol=1e-6)
     assert np.allclose(X, ilqr.rollout(f, x0, W), atol=1e-12)
     assert np.isclose(float(cost), float(best), rtol=1e-6)
+
+
+def test_linearised_in_motion_a_smoothed_friction_does_not_stall_the_plan():
+    """A block at rest under Coulomb friction smoothed as tanh(v / 0.01), to be pushed to 1 m in
+    2 s. At rest the friction's slope (100x its force) makes the linearised velocity flip sign
+    every step, and one iteration from rest goes almost nowhere; linearised in motion (the mean
+    Jacobian at v +- 0.2 m/s, where the friction is a constant force) one iteration takes the
+    block most of the way, and further iterations agree."""
+    dt, H = 0.1, 20
+
+    def block(x, w):
+        a = w[0] - 1.0 * jnp.tanh(x[1] / 0.01)
+        return jnp.array([x[0] + dt * x[1] + dt ** 2 * a, x[1] + dt * a])
+
+    def effort(x, w):
+        return 1e-3 * w @ w
+
+    def reach(x):
+        return 100.0 * ((x[0] - 1.0) ** 2 + x[1] ** 2)
+
+    x0, W0 = jnp.zeros(2), jnp.zeros((H, 1))
+    motion = jnp.array([0.0, 0.2])
+    guess = ilqr.rollout(block, x0, W0)
+    _, X_rest, _ = ilqr.solve(block, effort, reach, x0, W0, 1, guess=guess)
+    _, X_move, _ = ilqr.solve(block, effort, reach, x0, W0, 1, guess=guess, motion=motion)
+    _, X_many, _ = ilqr.solve(block, effort, reach, x0, W0, 8, guess=guess, motion=motion)
+    assert abs(float(X_rest[-1, 0]) - 1.0) > 0.5
+    assert abs(float(X_move[-1, 0]) - 1.0) < 0.1
+    assert abs(float(X_many[-1, 0]) - 1.0) < 0.05
