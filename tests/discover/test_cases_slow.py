@@ -17,10 +17,18 @@ from .cases import CASES, make
 pytestmark = pytest.mark.slow
 
 
+@pytest.mark.parametrize("source", ["physdsl", "mujoco"])
 @pytest.mark.parametrize("name", sorted(CASES))
-def test_a_law_outside_the_library_is_learned_and_distilled(name, tmp_path):
+def test_a_law_outside_the_library_is_learned_and_distilled(name, source, tmp_path):
+    """Data made by physdsl (the truth scene) or by MuJoCo (the law as xfrc_applied /
+    qfrc_applied): ``benchmarks/discovery.py [--source mujoco]`` runs the same steps."""
     case = CASES[name]
-    model = physdsl.compile(make(case, tmp_path))
+    if source == "mujoco":
+        from .mujoco_data import make_mujoco
+        path = make_mujoco(case, tmp_path)
+    else:
+        path = make(case, tmp_path)
+    model = physdsl.compile(path)
     idata = quick_fit(model)
     report = physdsl.check(model, idata)
     assert not report.consistent
