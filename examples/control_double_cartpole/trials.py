@@ -65,16 +65,16 @@ def plant_for(seed: int, period: float, noise: float) -> MujocoPlant:
 
 
 def trials(seeds: int = 10, duration: float = 3.0, noise: float = 1e-4, every: int = 10,
-           compare: bool | int = True) -> dict[str, float]:
+           compare: bool | int = True, first: int = 0) -> dict[str, float]:
     """The figures by name; ``compare`` also runs each seed (True) or the first ``compare``
     seeds (an int) without refits (for the cost; the cost with refits is then also given
-    over those seeds, ``_compared``)."""
+    over those seeds, ``_compared``); seeds ``first`` on."""
     compare = seeds if compare is True else int(compare)
     controller = mpc.Controller(physdsl.compile(HERE / "double_cartpole.phys"), screen=False)
     tr = controller.transition
     held, held_fixed, ms, cpu, cost, curves, ratio = [], [], [], [], {every: [], 0: []}, [], []
-    for seed in range(seeds):
-        for k in ((every, 0) if seed < compare else (every,)):
+    for seed in range(first, first + seeds):
+        for k in ((every, 0) if seed < first + compare else (every,)):
             run = mpc.run(tr.model, plant_for(seed, tr.period, noise), duration, refit_every=k,
                           controller=controller)
             cost[k].append(run.cost)
