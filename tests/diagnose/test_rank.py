@@ -144,7 +144,7 @@ def test_refits_stop_at_k_once_one_explains_the_misfit(quadratic, monkeypatch):
         r.consistent_after = r is explained  # its check finds no systematic residual
 
     monkeypatch.setattr(confirm, "refit", refit)
-    monkeypatch.setattr(confirm, "quick_fit", lambda model, seed=0: quadratic.idata)
+    monkeypatch.setattr(confirm, "quick_fit", lambda model, seed=0, start=None: quadratic.idata)
     monkeypatch.setattr(confirm, "lfo_points", lambda *a: np.zeros(3))
     for first_good, expected in ((0, 2), (3, 4)):
         rows = copy.deepcopy(quadratic.diagnosis.ranking)
