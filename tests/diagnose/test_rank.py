@@ -114,11 +114,13 @@ def test_a_failing_refit_leaves_the_candidate_unconfirmed(quadratic, monkeypatch
     better ranked one is not refitted."""
     import copy
 
-    from physdsl.diagnose import confirm
+    from physdsl.diagnose import confirm, refit_task
 
     def failing_fit(model, seed=0, start=None):
         raise np.linalg.LinAlgError("Matrix is not positive definite")
 
+    # a candidate's refit runs in refit_task (here or on a worker); confirm fits the baseline
+    monkeypatch.setattr(refit_task, "quick_fit", failing_fit)
     monkeypatch.setattr(confirm, "quick_fit", failing_fit)
     d = quadratic.diagnosis
     rows = copy.deepcopy(d.ranking)
