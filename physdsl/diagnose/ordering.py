@@ -41,7 +41,7 @@ def doubtful_twin(r: Ranked, ranked: list[Ranked]) -> bool:
     the misfit (linear drag on a pendulum's bob and joint damping) stay skipped."""
     rep = next((t for t in ranked if t.key == r.same_as), None)
     return (rep is not None and rep.effect != r.effect and rep.rms_after is not None
-            and rep.consistent_after is False)
+            and rep.consistent_after is False and not rep.note.startswith("refit failed"))
 
 
 def _material_first(ranked: list[Ranked]) -> None:

@@ -29,6 +29,8 @@ def test_a_twin_of_another_law_is_refitted_where_its_representative_left_a_patte
     assert doubtful_twin(friction, rows)
     drag.rms_after, drag.consistent_after = 0.98, True  # it explains the misfit: one refit serves
     assert not doubtful_twin(friction, rows)
+    drag.consistent_after, drag.note = False, "refit failed: Matrix is not positive definite"
+    assert not doubtful_twin(friction, rows)  # a failed refit says nothing of the twins
 
 
 def test_a_twin_of_the_same_law_stays_skipped():
