@@ -37,20 +37,30 @@ def total_cost(stage, final, X, W):
 
 def screen(f, stage, final, x0, W, candidates):
     """The cheapest of the plan ``W`` and the ``candidates`` (C, H, m), rolled out in one batch
-    from ``x0``: a local method started where the cost is flat or at its top (a pole hanging at
-    rest) has no slope to follow; a candidate that already swings gives it one."""
-    plans = jnp.concatenate([W[None], candidates])
-    costs = jax.vmap(lambda w: total_cost(stage, final, rollout(f, x0, w), w))(plans)
-    return plans[jnp.argmin(jnp.where(jnp.isfinite(costs), costs, jnp.inf))]
-
-
-def screen_rollout(f, stage, final, x0, W, candidates):
-    """``screen``'s choice and its trajectory from ``x0`` (a warm start for ``solve``)."""
+    from ``x0``, and its trajectory (a warm start for ``solve``): a local method started where
+    the cost is flat or at its top (a pole hanging at rest) has no slope to follow; a candidate
+    that already swings gives it one."""
     plans = jnp.concatenate([W[None], candidates])
     Xs = jax.vmap(lambda w: rollout(f, x0, w))(plans)
     costs = jax.vmap(lambda X, w: total_cost(stage, final, X, w))(Xs, plans)
     best = jnp.argmin(jnp.where(jnp.isfinite(costs), costs, jnp.inf))
     return plans[best], Xs[best]
+
+
+def jacobians(f, x, w, motion=None):
+    """(A, B) = the Jacobians of ``f(x, w)`` in one forward-mode pass; with ``motion`` (n,) the
+    mean of those at ``x + motion`` and ``x - motion`` (linearised in motion: a smoothed
+    Coulomb friction's steep slope at rest is a damping the moving system never feels)."""
+    n = x.shape[0]
+
+    def at(x):
+        AB = jax.jacfwd(lambda xw: f(xw[:n], xw[n:]))(jnp.concatenate([x, w]))
+        return AB[:, :n], AB[:, n:]
+
+    if motion is None:
+        return at(x)
+    (A1, B1), (A2, B2) = at(x + motion), at(x - motion)
+    return 0.5 * (A1 + A2), 0.5 * (B1 + B2)
 
 
 def _positive(Q):
@@ -63,18 +73,9 @@ def _positive(Q):
 
 
 def _backward(f, stage, final, X, W, motion=None):
-    """Feedforward steps k (H, m) and gains K (H, m, n) of the Riccati pass; with ``motion``
-    (n,) the dynamics' Jacobians are the mean of those at ``X + motion`` and ``X - motion``."""
-    n = X.shape[1]
-
-    def jac(x, w):  # one forward-mode pass for both Jacobians
-        return jax.jacfwd(lambda xw: f(xw[:n], xw[n:]))(jnp.concatenate([x, w]))
-
-    if motion is None:
-        AB = jax.vmap(jac)(X[:-1], W)
-    else:
-        AB = 0.5 * (jax.vmap(jac)(X[:-1] + motion, W) + jax.vmap(jac)(X[:-1] - motion, W))
-    A, B = AB[:, :, :n], AB[:, :, n:]
+    """Feedforward steps k (H, m) and gains K (H, m, n) of the Riccati pass; the dynamics'
+    Jacobians by ``jacobians`` (with ``motion``: linearised in motion)."""
+    A, B = jax.vmap(lambda x, w: jacobians(f, x, w, motion))(X[:-1], W)
     lx = jax.vmap(jax.grad(stage, 0))(X[:-1], W)
     lu = jax.vmap(jax.grad(stage, 1))(X[:-1], W)
     lxx = jax.vmap(jax.hessian(stage, 0))(X[:-1], W)

@@ -165,7 +165,7 @@ class Controller:
             """iLQR from ``x0`` warm-started at the plan ``W`` and its trajectory ``X``."""
             f, final = dynamics(z), final_cost(*end)
             if screen:  # the warm plan against fresh pumping pushes, then iLQR
-                W, X = ilqr.screen_rollout(f, stage, final, x0, W, candidates)
+                W, X = ilqr.screen(f, stage, final, x0, W, candidates)
             return ilqr.solve(f, stage, final, x0, W, iterations, guess=X)
 
         self.plan = jax.jit(plan, static_argnums=5)
@@ -176,12 +176,17 @@ class Controller:
         """The plan's terminal-cost argument at physical unknowns ``z``: (P, 0.0) with the LQR
         cost-to-go at the goal's equilibrium, else ``last`` (the previous one) or (0, 1.0):
         the horizon's last state weighing ``TERMINAL`` steps."""
-        nx = self.transition.nx
         if self.equilibrium is not None:
             found = terminal.value_matrix(self.equilibrium, jnp.asarray(z), self.transition.nu)
             if found is not None:
                 return jnp.asarray(found[0]), jnp.asarray(0.0)
-        return last if last is not None else (jnp.zeros((nx, nx)), jnp.asarray(1.0))
+        return last if last is not None else self.fallback()
+
+    def fallback(self):
+        """The terminal-cost argument without the LQR: the last state weighing ``TERMINAL``
+        steps (no cost-to-go matrix)."""
+        nx = self.transition.nx
+        return jnp.zeros((nx, nx)), jnp.asarray(1.0)
 
     def near(self, x) -> bool:
         """Whether every hinge of ``x`` is within ``NEAR`` (chord) of the goal's equilibrium."""
@@ -193,10 +198,7 @@ class Controller:
     def end(self, x, lqr_end):
         """The terminal-cost argument for a plan from ``x``: the LQR one near the equilibrium,
         else the horizon's last state weighing ``TERMINAL`` steps."""
-        if self.near(x):
-            return lqr_end
-        nx = self.transition.nx
-        return jnp.zeros((nx, nx)), jnp.asarray(1.0)
+        return lqr_end if self.near(x) else self.fallback()
 
     def state(self, obs: Observation) -> np.ndarray:
         missing = [j for j in self.transition.joints

@@ -23,6 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 import scipy.linalg
 
+from . import ilqr
 from .transition import Transition
 
 NEWTON = 8  # Gauss-Newton steps for the force that holds the equilibrium
@@ -57,10 +58,7 @@ def equilibrium(tr: Transition, holds, stage, squash) -> Equilibrium | None:
     def linearise(z, w):
         prm = tr.params(z)
         f = lambda x, w: tr.step(prm, x, squash(w))  # noqa: E731
-        offset = jnp.concatenate([jnp.zeros(n), jnp.full(n, MOTION)])
-        A, B = jax.vmap(lambda x: jax.jacfwd(f, (0, 1))(x, w))(jnp.stack([xs + offset,
-                                                                          xs - offset]))
-        A, B = jnp.mean(A, axis=0), jnp.mean(B, axis=0)
+        A, B = ilqr.jacobians(f, xs, w, jnp.concatenate([jnp.zeros(n), jnp.full(n, MOTION)]))
         Q = jax.hessian(stage, 0)(xs, w)
         R = jax.hessian(stage, 1)(xs, w)
         S = jax.jacfwd(jax.grad(stage, 0), 1)(xs, w)
