@@ -310,11 +310,20 @@ def _evaluate(eqns, env, needed) -> None:
         env.update(zip(outs, fn(*[env[v] for v in ins])))
 
 
+def _scan_sizes(params) -> tuple[int, int]:
+    """(constants, carries) of a scan equation: named in its params up to JAX 0.10; from 0.11 a
+    flat tree ``ft_in`` packs (constants, carries, scanned inputs)."""
+    if "num_consts" in params:
+        return params["num_consts"], params["num_carry"]
+    consts, carry, _ = params["ft_in"].unpack()
+    return len(consts), len(carry)
+
+
 def _scan(eqn, env, tenv, P) -> None:
     """A scan with its tangents: a new scan carrying every float carry's P tangents, whose body
     is the vmapped jvp of the old one."""
     p = eqn.params
-    nc, nk = p["num_consts"], p["num_carry"]
+    nc, nk = _scan_sizes(p)
     read = lambda v: v.val if isinstance(v, core.Literal) else env[v]  # noqa: E731
     ins = [read(v) for v in eqn.invars]
     tans = [None if isinstance(v, core.Literal) else tenv.get(v) for v in eqn.invars]
