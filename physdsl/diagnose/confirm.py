@@ -13,7 +13,7 @@ from ..infer.fit import quick_fit
 from .candidates import Candidate
 from .diagnosis import Ranked, Refit
 from . import refit_task
-from .edits import Draft, _base_dir, unknown_key, unknown_keys
+from .edits import Draft, scene_dir, unknown_key, unknown_keys
 from .lfo import LFO_FRACTION, cutoff as lfo_cutoff, lfo_points
 from .loo import combined_loo
 from .ordering import doubtful_twin
@@ -118,7 +118,7 @@ def task(base: Baseline, r: Ranked, draft: Draft, start: dict | None) -> refit_t
     """``r``'s refit as plain values (``refit_task.RefitTask``), to run here or on a worker."""
     scene, cand = base.model.scene, r.candidate
     return refit_task.RefitTask(
-        draft.text(), str(scene.path or "<string>"), str(_base_dir(scene)), start,
+        draft.text(), str(scene.path or "<string>"), str(scene_dir(scene)), start,
         np.asarray(base.loo.loo_i), base.lfo, base.cutoff, base.rms,
         unknown_key(scene, cand), tuple(unknown_keys(scene, cand)), refit_task.current_cache())
 

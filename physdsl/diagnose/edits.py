@@ -85,7 +85,7 @@ class Draft:
 
     def resolved(self, module: ast.Module) -> "Draft":
         """The draft of an edited AST: its Scene resolved beside this scene's file."""
-        scene = resolve(module, self.source, _base_dir(self.scene), self.scene.path)
+        scene = resolve(module, self.source, scene_dir(self.scene), self.scene.path)
         return Draft(dataclasses.replace(scene, source=""), module, self.source)
 
     def with_candidate(self, cand: Candidate) -> "Draft":
@@ -145,13 +145,15 @@ def _pairs_with(scene, cand: Candidate) -> list[tuple[str, ...]]:
             and cand.shared_param in references(e.params[name])]
 
 
-def _base_dir(scene) -> Path:
+def scene_dir(scene) -> Path:
+    """The folder a scene's relative paths (data, imports) are read from: its file's, else the
+    working directory's."""
     return Path(scene.path).parent if scene.path else Path.cwd()
 
 
 def load_text(scene, text):
     """A scene from ``text``, its relative data paths resolved beside ``scene``'s file."""
-    return loads(text, filename=str(scene.path or "<string>"), base_dir=_base_dir(scene))
+    return loads(text, filename=str(scene.path or "<string>"), base_dir=scene_dir(scene))
 
 
 def unknown_keys(scene, cand: Candidate) -> list[str]:
