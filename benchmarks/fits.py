@@ -10,7 +10,8 @@ default settings (4 chains = starts, 500 optimisation steps) and ``--samples`` L
 - ``fit_rms_sigma.CASE``: residual RMS in noise units at the posterior's best draw,
 - ``basins_found.CASE``: basins the multistart reported (``n/a`` where the run reports none),
 - ``coverage_90.CASE``: fraction of true parameter components inside the 5-95% interval of
-  the run's summary.
+  the run's summary (the intervals it shows: robust by default),
+- ``cpu_s.CASE``: CPU seconds of the case's process (the quiet-machine time on a shared one).
 
 Each case runs in its own process with a time limit (``--timeout``), so one that cannot finish
 is reported as such. Wall times on a shared machine: the load average is printed beside them.
@@ -24,6 +25,7 @@ import physdsl
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import time
@@ -54,8 +56,9 @@ def scene_text(folder: Path, scene: str | None) -> str:
     return (folder / scene).read_text() if scene is not None else hidden_scene(folder)
 
 
-def run_case(name: str, samples: int, seed: int) -> dict:
-    """Fit one case in this process; its figures as a dict."""
+def run_case(name: str, samples: int, seed: int, save: str = "") -> dict:
+    """Fit one case in this process; its figures as a dict (its posterior written to
+    ``save``/CASE.nc where given, for re-reading the intervals without a refit)."""
     import numpy as np
 
     import physdsl  # noqa: F401 - float64
@@ -71,6 +74,10 @@ def run_case(name: str, samples: int, seed: int) -> dict:
     t0 = time.perf_counter()
     idata = physdsl.infer(model, backend="map", samples=samples, seed=seed, progress=False)
     wall = time.perf_counter() - t0
+    if save:
+        from physdsl.infer import posterior_data
+
+        posterior_data.write(idata, Path(save) / f"{name}.nc")
     values = point_estimate(model, idata)
     r = np.asarray(model.standardized_residuals(values, model.predict(values)))
     n = sum(int(np.sum(o.mask)) for o in model.observed)
@@ -89,13 +96,16 @@ def run_case(name: str, samples: int, seed: int) -> dict:
 
 
 def _run_child(name: str, cmd: list[str], timeout: float) -> dict:
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired:
         return {"case": name, "error": f"did not finish within {timeout:.0f} s"}
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
     line = next((ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")), None)
     if line is not None:
-        return json.loads(line[len("RESULT "):])
+        return {**json.loads(line[len("RESULT "):]), "cpu": cpu}
     tail = (proc.stderr.strip().splitlines() or ["no output"])[-1]
     return {"case": name, "error": f"failed (exit {proc.returncode}): {tail}"}
 
@@ -106,10 +116,12 @@ def main() -> None:
     ap.add_argument("--samples", type=int, default=200, help="Laplace draws per chain")
     ap.add_argument("--timeout", type=float, default=1800.0, help="seconds per case")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--save", default="", help="write each case's posterior to DIR/CASE.nc")
     ap.add_argument("--one", default="", help=argparse.SUPPRESS)  # worker mode
     args = ap.parse_args()
     if args.one:
-        print("RESULT " + json.dumps(run_case(args.one, args.samples, args.seed)), flush=True)
+        print("RESULT " + json.dumps(run_case(args.one, args.samples, args.seed, args.save)),
+              flush=True)
         return
     known = cases()
     bad = [n for n in args.case if n not in known]
@@ -118,20 +130,20 @@ def main() -> None:
     results = []
     for name in args.case or list(known):
         cmd = [sys.executable, __file__, "--one", name, "--samples", str(args.samples),
-               "--seed", str(args.seed)]
+               "--seed", str(args.seed)] + (["--save", args.save] if args.save else [])
         res = _run_child(name, cmd, args.timeout)
         res["load"] = " ".join(f"{x:.1f}" for x in os.getloadavg())
         results.append(res)
         _print(res)
     print()
-    print("| case | fit wall (s) | RMS (σ) | basins | 90% coverage | load |")
-    print("|---|---|---|---|---|---|")
+    print("| case | fit wall (s) | CPU (s) | RMS (σ) | basins | 90% coverage | load |")
+    print("|---|---|---|---|---|---|---|")
     for r in results:
         if "error" in r:
-            print(f"| {r['case']} | {r['error']} | | | | {r['load']} |")
+            print(f"| {r['case']} | {r['error']} | | | | | {r['load']} |")
             continue
         cov = "—" if r["coverage"] is None else f"{r['coverage']:.2f} of {r['n_params']}"
-        print(f"| {r['case']} | {r['wall']:.0f} | {r['rms']:.2f} | {_fmt(r['basins'])} | {cov} "
+        print(f"| {r['case']} | {r['wall']:.0f} | {r['cpu']:.0f} | {r['rms']:.2f} | {_fmt(r['basins'])} | {cov} "
               f"| {r['load']} |")
 
 
@@ -145,6 +157,7 @@ def _print(r: dict) -> None:
         print(f"error.{n}: {r['error']}", flush=True)
         return
     print(f"fit_wall_s.{n}: {r['wall']:.1f}")
+    print(f"cpu_s.{n}: {r['cpu']:.1f}")
     print(f"fit_rms_sigma.{n}: {r['rms']:.3f}")
     print(f"basins_found.{n}: {_fmt(r['basins'])}")
     print(f"coverage_90.{n}: {_fmt(None if r['coverage'] is None else round(r['coverage'], 3))}")

@@ -35,6 +35,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from numpyro.infer.util import constrain_fn
+from scipy.stats import chi2
 
 from ..compile import PRED_PREFIX
 from ..expr import references
@@ -148,16 +149,101 @@ def widening(sigma: np.ndarray, V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return L @ (U * f) @ U.T @ Li, f
 
 
+# -- the scores' own covariance over time: heteroscedasticity and autocorrelation consistent --
+HAC_BLOCKS = 8  # the bandwidth is at most the record / this (``block_check``'s blocks): the
+# scores of a fit sum to zero over the record, so a window near its length sees nothing
+HAC_LEVEL = 0.05  # a direction widens by the HAC estimate only where it exceeds the REML
+# sandwich by more than the estimate's own sampling error would under the model, at this
+# level, Bonferroni over the d directions
+
+
+def andrews_bandwidth(psi: np.ndarray) -> float:
+    """Bartlett-kernel bandwidth (lags) of Andrews (1991) from AR(1) fits to each column of the
+    score series ``psi`` (M, d): long where the scores run, about 1 where they are white."""
+    a, b = psi[1:], psi[:-1]
+    rho = np.clip(np.sum(a * b, axis=0) / np.maximum(np.sum(b * b, axis=0), 1e-300), -0.97, 0.97)
+    s2 = np.mean(psi ** 2, axis=0) * (1.0 - rho ** 2)
+    num = np.sum(4.0 * rho ** 2 * s2 ** 2 / ((1.0 - rho) ** 6 * (1.0 + rho) ** 2))
+    den = np.sum(s2 ** 2 / (1.0 - rho) ** 4)
+    return 1.1447 * (num / max(den, 1e-300) * psi.shape[0]) ** (1.0 / 3.0)
+
+
+def hac_covariance(psi: np.ndarray) -> tuple[np.ndarray, float]:
+    """(Omega (d, d), bandwidth): the Newey-West (Bartlett) long-run covariance of the score
+    series ``psi`` (M, d), sum_t sum_s w(|t - s|) psi_t psi_s^T, with ``andrews_bandwidth``
+    at most M / ``HAC_BLOCKS``. Non-parametric: a misfit confined to part of the record (an
+    impact a soft contact makes differently) counts where it is, not averaged over it."""
+    m = psi.shape[0]
+    L = float(np.clip(andrews_bandwidth(psi), 1.0, max(m / HAC_BLOCKS, 1.0)))
+    omega = psi.T @ psi
+    for j in range(1, int(np.floor(L)) + 1):
+        g = psi[j:].T @ psi[:-j]
+        omega += (1.0 - j / (L + 1.0)) * (g + g.T)
+    return 0.5 * (omega + omega.T), L
+
+
+def hac_excess(G: np.ndarray, u: np.ndarray, lags: float, level: float) -> float:
+    """How far above its mean ``hac_covariance``'s variance along the unit direction ``u``
+    comes by chance, at ``level``, if the model were right (psi_t = c_t e_t, e white at the
+    stated noise): the estimate is a quadratic form in Gaussians, of mean sum_t a_t and
+    variance 2 sum_ts w_ts^2 a_t a_s (a_t = u^T G_t u, G (M, d, d): per bin, the components'
+    sum of c c^T), taken as a scaled chi-square with those two moments (Satterthwaite). Few
+    informative rows (the end of a record, an impact) make it large."""
+    a = np.einsum("tij,i,j->t", G, u, u)
+    mean, total = float(a.sum()), float(a @ a)
+    for j in range(1, int(np.floor(lags)) + 1):
+        total += 2.0 * (1.0 - j / (lags + 1.0)) ** 2 * float(a[j:] @ a[:-j])
+    if mean <= 0 or total <= 0:
+        return 0.0
+    nu = mean ** 2 / total  # 2 mean^2 / variance, variance = 2 total
+    return mean * (float(chi2.isf(level, nu)) / nu - 1.0)
+
+
+def _score_series(parts, rows: int) -> tuple[np.ndarray, np.ndarray]:
+    """(psi (M, d), G (M, d, d)) on one time grid of at most ``rows`` bins over the span of
+    ``parts`` [(times (N,), c (N, d), residuals (N,))], every residual component's: per bin,
+    the sum of the scores psi_t = c_t r_t (components measured at the same time together:
+    their misfits are correlated, e.g. at an impact) and of c_t c_t^T (what E psi_t psi_t^T
+    would be with white residuals at the stated noise)."""
+    t = np.concatenate([p[0] for p in parts])
+    c = np.concatenate([p[1] for p in parts])
+    r = np.concatenate([p[2] for p in parts])
+    lo, hi = float(t.min()), float(t.max())
+    steps = [np.diff(np.unique(p[0])) for p in parts]
+    step = min((float(np.median(d)) for d in steps if d.size), default=max(hi - lo, 1.0))
+    m = int(min(rows, max(1, np.ceil((hi - lo) / max(step, 1e-12)) + 1)))
+    idx = np.minimum(((t - lo) / max(hi - lo, 1e-300) * m).astype(int), m - 1)
+    psi = np.zeros((m, c.shape[1]))
+    np.add.at(psi, idx, c * r[:, None])
+    G = np.zeros((m, c.shape[1], c.shape[1]))
+    np.add.at(G, idx, c[:, :, None] * c[:, None, :])
+    return psi, G
+
+
+def _combine(M1: np.ndarray, M2: np.ndarray, G: np.ndarray, lags: float) -> np.ndarray:
+    """M1 plus the part of (M2 - M1) that its sampling error under the model cannot explain
+    (whitened: the posterior is I): at least the REML sandwich everywhere, and the HAC
+    estimate along the directions where it is clearly larger."""
+    lam, U = np.linalg.eigh(0.5 * ((M2 - M1) + (M2 - M1).T))
+    level = HAC_LEVEL / max(len(lam), 1)
+    big = np.array([lam[i] > 0 and lam[i] > hac_excess(G, U[:, i], lags, level)
+                    for i in range(len(lam))], dtype=bool)
+    return M1 + (U[:, big] * lam[big]) @ U[:, big].T
+
+
 def robust_covariance(draws: np.ndarray, streams: list[tuple[np.ndarray, np.ndarray, np.ndarray]]):
     """Sandwich covariance (d, d) from flat draws (n, d) and, per residual stream, (times (N,),
     standardised residual draws (n, N, K), mask (N, K)); and the fitted residual model of
     every component. V = sum over components of C Gamma C^T with C = Cov_post(theta, r) (from
     the draws: H^-1 J^T to first order) and Gamma the component's ``residual_covariance``
-    (the components are taken as independent of each other)."""
+    (the components are taken as independent of each other); then, along the directions
+    where the scores' non-parametric long-run covariance (``hac_covariance`` of
+    psi_t = sum_k C_tk r_tk over all components) is clearly larger, that one instead."""
     delta = draws - draws.mean(axis=0)
     V = np.zeros((draws.shape[1],) * 2)
-    Li = np.linalg.inv(np.linalg.cholesky(np.cov(draws, rowvar=False).reshape(V.shape)))
-    fits = []
+    L = np.linalg.cholesky(np.cov(draws, rowvar=False).reshape(V.shape))
+    Li = np.linalg.inv(L)
+    fits, parts = [], []
     for times, res, mask in streams:
         rbar = res.mean(axis=0)
         C = np.einsum("nd,ntk->dtk", delta, res - rbar) / (draws.shape[0] - 1)
@@ -165,12 +251,21 @@ def robust_covariance(draws: np.ndarray, streams: list[tuple[np.ndarray, np.ndar
             rows = mask[:, k]
             if rows.sum() < 8:
                 continue
-            t, y, Ck = _binned(np.asarray(times, float)[rows], rbar[rows, k], C[:, rows, k],
-                               MAX_ROWS)
+            tk = np.asarray(times, float)[rows]
+            parts.append((tk, (Li @ C[:, rows, k]).T, rbar[rows, k]))
+            t, y, Ck = _binned(tk, rbar[rows, k], C[:, rows, k], MAX_ROWS)
             gamma, fit = residual_covariance(t, y, (Li @ Ck).T)
             V += Ck @ gamma @ Ck.T
             fits.append(fit)
-    return 0.5 * (V + V.T), fits
+    V = 0.5 * (V + V.T)
+    if parts:
+        psi, G = _score_series(parts, MAX_ROWS)
+        omega, lags = hac_covariance(psi)
+        M = _combine(Li @ V @ Li.T, omega, G, lags)
+        V = L @ (0.5 * (M + M.T)) @ L.T
+        fits.append({"kind": "hac", "bandwidth_lags": lags, "rows": int(psi.shape[0]),
+                     "largest": float(np.linalg.eigvalsh(omega).max())})
+    return V, fits
 
 
 # -- the run's draws ------------------------------------------------------------------------
@@ -207,12 +302,15 @@ def add_robust(idata, model, problem, flat: np.ndarray, constrained: dict, shown
     values = _constrain(model, problem)(jnp.asarray(Xr))
     post = {u: np.asarray(values[u]).reshape(chains, samples, *np.shape(values[u])[1:])
             for u in model.unknown_names}
+    hac = [fit for fit in fits if fit["kind"] == "hac"]
+    fits = [fit for fit in fits if fit["kind"] != "hac"]
     found = [fit for fit in fits if fit["kind"] in KERNELS]
     posterior_data.add_group(idata, GROUP, post, {
         "method": METHOD + (" + " + BLOCK_METHOD if block and "p_value" in block else ""),
         "max_widening": float(max(f.max(initial=1.0), widest.max(initial=1.0))),
         "block_check": json.dumps(block if block is not None else {"note": "not run"}),
         "residual_models": json.dumps(fits),
+        "score_hac": json.dumps(hac[0] if hac else {}),
         "discrepancies": f"{len(found)} of {len(fits)} residual components"})
     idata.attrs["intervals"] = shown
     return idata
