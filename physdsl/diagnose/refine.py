@@ -71,6 +71,11 @@ class _Loop:
     ties: list = field(default_factory=list)  # this round's re-examination: swaps the data cannot decide
 
 
+# a library winner that removes less than this share of the excess misfit (RMS² - 1) left by the
+# effects the loop chose before, with systematic residuals after it, has a learned force beside it
+BESIDE_EXPLAINED = 0.9
+
+
 def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", chains: int = 2,
            warmup: int = 300, samples: int = 300, seed: int = 0, force: bool = False,
            confirm_top: int = 2, revise=(), echo=print, progress: bool = False,
@@ -131,7 +136,10 @@ def _round(loop: _Loop, k: int, current: Path, last: bool, confirm_top: int) -> 
         _record(loop, k, current, now, "stopped: no addition, swap or drop improves the evidence; "
                 + diag.verdict + (f"; {learned}" if learned else ""))
         return None
-    _record(loop, k, current, now, diag.verdict)
+    beside = _beside(loop, k, current, model, now, diag)
+    if isinstance(beside, Path):
+        return beside
+    _record(loop, k, current, now, diag.verdict + (f"; beside it, {beside}" if beside else ""))
     loop.kept = (model, now, diag)
     return _add_winner(loop, k, draft, model, now, diag.winner)
 
@@ -210,11 +218,35 @@ def _add_winner(loop: _Loop, k: int, draft: Draft, model, now, w) -> Path:
     return nxt
 
 
-def _beyond(loop: _Loop, k: int, current: Path, model, now, diag) -> Path | str:
-    """Learn a force where the library explains nothing (``loop.beyond``); the next round's file
-    with its law where ``allow_learned`` permits and a law was found, else the verdict's words."""
-    rows = [r for r in diag.ranking if r.rms_after is not None]
-    best = min(rows, key=lambda r: r.rms_after, default=None)
+def half_explained(k: int, w) -> bool:
+    """The library's winner ``w`` of round ``k`` leaves the data half explained, so a learned
+    force is fitted beside it: the library has had its first word (k >= 1: an effect it chose
+    is in the scene already), the winner's refit still leaves systematic residuals, and it
+    removes less than ``BESIDE_EXPLAINED`` of the excess misfit (RMS² - 1, noise units) left."""
+    if k < 1 or w.consistent_after is not False or w.rms_after is None or w.rms_before is None:
+        return False
+    excess = w.rms_before ** 2 - 1.0
+    return excess > 0 and (w.rms_before ** 2 - w.rms_after ** 2) < BESIDE_EXPLAINED * excess
+
+
+def _beside(loop: _Loop, k: int, current: Path, model, now, diag) -> Path | str | None:
+    """Where the winner only half explains the round (``half_explained``), learn a force beside
+    it (``_beyond``, the winner as the library's side of the comparison); the next round's file
+    where the law wins and ``allow_learned`` permits, else its words (None: not tried)."""
+    if loop.beyond is None or not half_explained(k, diag.winner):
+        return None
+    loop.echo(f"round {k}: the library's winner leaves systematic residuals and explains less "
+              f"than {BESIDE_EXPLAINED:.0%} of the misfit left: learning a force beside it")
+    return _beyond(loop, k, current, model, now, diag, best=diag.winner)
+
+
+def _beyond(loop: _Loop, k: int, current: Path, model, now, diag, best=None) -> Path | str:
+    """Learn a force where the library explains nothing, or beside its winner ``best``
+    (``loop.beyond``); the next round's file with its law where ``allow_learned`` permits, a
+    law was found and the library's side does not win, else the verdict's words."""
+    if best is None:
+        rows = [r for r in diag.ranking if r.rms_after is not None]
+        best = min(rows, key=lambda r: r.rms_after, default=None)
     library = None if best is None else {"effect": best.key, "rms": best.rms_after,
                                          "log_z": best.log_evidence}
     try:
@@ -223,8 +255,8 @@ def _beyond(loop: _Loop, k: int, current: Path, model, now, diag) -> Path | str:
     except PhysError as err:  # the library's verdict stands; say why nothing was learned
         loop.echo(f"round {k}: learning a force failed: {err.message}")
         return f"learning a force failed ({err.message})"
-    if not (loop.allow_learned and res.proposed and res.scene_text):
-        why = "" if not (res.proposed and res.scene_text) else \
+    if not (loop.allow_learned and res.proposed and res.scene_text and not res.library_wins):
+        why = "" if not (res.proposed and res.scene_text) or res.library_wins else \
             " (not added: pass --allow-learned to add the distilled law)"
         return res.verdict + why
     _record(loop, k, current, now, res.verdict)

@@ -45,6 +45,7 @@ class Beyond:
     scene_text: str | None = None  # the round's scene with the law added
     files: dict = field(default_factory=dict)
     outside_library: bool = True
+    library_wins: bool = False  # the library's effect explains the data as well: nothing is added
 
     def to_dict(self) -> dict:
         return {k: v for k, v in self.__dict__.items() if k != "scene_text"}
@@ -114,16 +115,29 @@ def law_phys(law: Law, target: str, kind: str, center) -> str:
                   f"# effect distilled_law on {target} {{ {fields} }}\n"
 
 
+def library_wins(lib: dict | None, law: dict | None) -> bool:
+    """The library's effect stands against the law (Honesty: the library wins ties): it reaches
+    the noise and no law beats it, or the law's Laplace evidence is not better by more than
+    ``STRONG``; where an evidence is n/a, the law must reach the noise where the library does not."""
+    if lib is None or lib.get("rms") is None:
+        return False
+    if law is None:
+        return lib["rms"] <= WITHIN_NOISE
+    if lib.get("log_z") is not None and law.get("log_z") is not None:
+        return lib["log_z"] >= law["log_z"] - STRONG
+    return lib["rms"] <= WITHIN_NOISE or law["rms"] > WITHIN_NOISE
+
+
 def verdict(res: Beyond) -> str:
     """One paragraph: what the learned force explains, the law, the comparison."""
     lib = res.library
     head = (f"outside the library: a learned force on {res.target} brings the residual RMS "
             f"{res.rms_before:.2f}σ -> {res.rms_learned:.2f}σ")
-    if lib is not None and lib.get("rms") is not None and lib["rms"] <= WITHIN_NOISE and (
-            res.law is None or lib.get("log_z") is None or res.law.get("log_z") is None
-            or lib["log_z"] >= res.law["log_z"] - STRONG):
-        return (f"the library's {lib['effect']} explains the data ({lib['rms']:.2f}σ): it wins; "
-                f"nothing learned is proposed ({head})")
+    if library_wins(lib, res.law):
+        z = "" if res.law is None or lib.get("log_z") is None or res.law.get("log_z") is None \
+            else f", log Z {lib['log_z']:.1f} vs the law's {res.law['log_z']:.1f}"
+        return (f"the library's {lib['effect']} explains the data as well ({lib['rms']:.2f}σ{z}): "
+                f"it wins; nothing learned is proposed ({head})")
     if not res.proposed:
         return f"nothing learned is proposed: {head}, too little to be worth a law"
     if res.law is None:
@@ -131,9 +145,13 @@ def verdict(res: Beyond) -> str:
     law = res.law
     words = " + ".join(law["terms"])
     extra = " (terms the library holds)" if law["in_library"] else ""
+    against = "" if lib is None or lib.get("rms") is None else (
+        f"; against the library's {lib['effect']}: {lib['rms']:.2f}σ"
+        + ("" if lib.get("log_z") is None else f", log Z {lib['log_z']:.1f}"))
     return (f"{head}; distilled law: {words}{extra}, refitted to {law['rms']:.2f}σ "
             f"(log Z {law['log_z'] if law['log_z'] is None else round(law['log_z'], 1)} vs "
-            f"learned {res.log_z_learned if res.log_z_learned is None else round(res.log_z_learned, 1)})")
+            f"learned {res.log_z_learned if res.log_z_learned is None else round(res.log_z_learned, 1)})"
+            f"{against}")
 
 
 def beyond_library(model, idata, report, outdir, *, target: str | None = None,
@@ -164,6 +182,7 @@ def beyond_library(model, idata, report, outdir, *, target: str | None = None,
         res.scene_text = law.text
         res.files["law"] = str(io.write_text(outdir / "law.phys", res.law_phys))
         res.files["scene"] = str(io.write_text(outdir / "scene.phys", law.text))
+    res.library_wins = library_wins(library, res.law)
     res.verdict = verdict(res)
     s = learned_samples(learned, target, kind)
     coefs = None if law is None else {t: c[0] for t, c in law.coefficients.items()}

@@ -5,7 +5,8 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 import physdsl
-from physdsl.discover.beyond import Beyond, learned_helps, pointed_target, verdict
+from physdsl.discover.beyond import (Beyond, learned_helps, library_wins, pointed_target,
+                                     verdict)
 
 SCENE = """scene s {
   world { timestep: 10 ms }
@@ -38,7 +39,14 @@ def test_a_library_effect_that_explains_the_data_wins_ties():
     assert verdict(_beyond(lib, 201.0)).startswith("the library's quadratic_drag@ball explains")
     assert "distilled law: v_sqrt_speed" in verdict(_beyond(lib, 210.0))  # clearly better
     worse = {"effect": "quadratic_drag@ball", "rms": 2.7, "log_z": 200.0}  # not at the noise
-    assert "distilled law" in verdict(_beyond(worse, 190.0))
+    assert "distilled law" in verdict(_beyond(worse, 210.0))
+    # beside a library winner that leaves systematic residuals the evidence still decides:
+    # a law no better than log 10 does not displace it
+    assert verdict(_beyond(worse, 190.0)).startswith("the library's quadratic_drag@ball explains")
+    assert verdict(_beyond(worse, 201.0)).startswith("the library's quadratic_drag@ball explains")
+    # evidence n/a: the law must reach the noise where the library does not
+    assert "distilled law" in verdict(_beyond({**worse, "log_z": None}, None))
+    assert library_wins({**worse, "rms": 1.1, "log_z": None}, {"rms": 1.0, "log_z": None})
     assert verdict(_beyond(None, 0.0, proposed=False)).startswith("nothing learned is proposed")
 
 

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
-from physdsl.diagnose.refine import _beyond, _Loop
+import pytest
+
+from physdsl.diagnose.refine import _beside, _beyond, _Loop, half_explained
 from physdsl.discover.beyond import Beyond
 
 LAW_SCENE = "# the law's scene text\n"
@@ -52,3 +54,54 @@ def test_with_the_flag_the_next_round_is_the_law_labelled_outside_the_library(tm
     assert loop.change["added"] == {"effect": "distilled_law", "target": "ball",
                                     "outside_library": True, "terms": ["v_sqrt_speed"]}
     assert loop.rounds[-1].verdict == "outside the library: ..."
+
+
+def _winner(before, after, consistent=False):
+    return SimpleNamespace(rms_before=before, rms_after=after, consistent_after=consistent,
+                           key="constant_force@bob", log_evidence=-40.0)
+
+
+def test_a_force_is_learned_beside_a_winner_only_where_it_half_explains():
+    # the cubic spring's round 1: constant force 4.26σ -> 2.59σ removes 67% of RMS² - 1
+    assert half_explained(1, _winner(4.26, 2.59))
+    assert not half_explained(0, _winner(4.26, 2.59))  # the library's first word
+    assert not half_explained(1, _winner(4.26, 2.59, consistent=True))  # no systematic residual
+    assert not half_explained(1, _winner(5.62, 1.3))  # removes 96%: the library is getting there
+    assert not half_explained(1, _winner(1.0, 0.9))  # nothing left to explain
+    assert half_explained(2, _winner(3.0, 2.9))
+
+
+def _beside_setup(tmp_path, allow, library_wins=False, winner=None):
+    loop, now, diag, current, seen = _setup(tmp_path, allow)
+    w = winner or _winner(3.0, 2.5)
+    diag.winner = w
+    res = loop.beyond(None, None, None, None, None, None)
+    res.library_wins = library_wins
+    seen.clear()
+    return loop, now, diag, current, seen, w
+
+
+@pytest.mark.parametrize("allow", [False, True])
+def test_beside_the_winner_the_law_enters_only_with_the_flag_and_the_evidence(tmp_path, allow):
+    loop, now, diag, current, seen, w = _beside_setup(tmp_path, allow)
+    out = _beside(loop, 1, current, None, now, diag)
+    # the library's side of the comparison is the winner, not the lowest RMS of the ranking
+    assert seen == [{"effect": "constant_force@bob", "rms": 2.5, "log_z": -40.0}]
+    if allow:
+        assert out == tmp_path / "out" / "round-2" / "scene.phys"
+        assert out.read_text() == LAW_SCENE and loop.change["action"] == "learned"
+    else:
+        assert isinstance(out, str) and "not added: pass --allow-learned" in out
+        assert not (tmp_path / "out" / "round-2").exists() and loop.rounds == []
+
+
+def test_beside_the_winner_a_tie_keeps_the_library_effect(tmp_path):
+    loop, now, diag, current, seen, _ = _beside_setup(tmp_path, True, library_wins=True)
+    out = _beside(loop, 1, current, None, now, diag)
+    assert isinstance(out, str) and "not added" not in out
+    assert not (tmp_path / "out" / "round-2").exists() and loop.rounds == []
+
+
+def test_no_training_where_the_winner_explains_the_round(tmp_path):
+    loop, now, diag, current, seen, _ = _beside_setup(tmp_path, True, winner=_winner(5.62, 1.3))
+    assert _beside(loop, 1, current, None, now, diag) is None and seen == []
