@@ -14,6 +14,7 @@ from .candidates import Candidate
 from .diagnosis import Ranked, Refit
 from . import refit_task
 from .edits import Draft, scene_dir, unknown_key, unknown_keys
+from .evidence import laplace_log_evidence
 from .lfo import LFO_FRACTION, cutoff as lfo_cutoff, lfo_points
 from .loo import combined_loo
 from .ordering import doubtful_twin
@@ -40,6 +41,14 @@ class Baseline:
         except REFIT_FAILURES:
             self.lfo = None  # leave-future-out unavailable: judged on ΔELPD and RMS alone
         self._text = None
+        self._log_z = ()
+
+    def log_z(self) -> float | None:
+        """The scene's Laplace log evidence (computed once, when a refit's PSIS-LOO is
+        unreliable and the evidence must decide instead)."""
+        if self._log_z == ():
+            self._log_z = laplace_log_evidence(self.model, self.idata)
+        return self._log_z
 
     def text(self) -> str:
         """The scene's text (printed once, for the snippets)."""
@@ -79,19 +88,44 @@ def confirm(model, idata, ranked: list[Ranked], k: int, base_rms: float, echo=No
         if r.kind == "effect" and (done >= k + EXTRA_REFITS or (done >= k and explained)):
             break
         done += r.kind == "effect"
-        echo(f"  refit {done}: with {r.effect} on {r.target}")
-        t0 = time.perf_counter()
-        try:
-            if id(r) in ahead:
-                drafted, future = ahead.pop(id(r))
-                apply(base, r, refit_task.result(future), drafted)
-            else:
-                refit(base, r, refit_start(model, idata, r.candidate, r.estimate))
-            echo(f"    {evidence_text(r)} ({time.perf_counter() - t0:.0f} s)")
-        except REFIT_FAILURES as err:
-            r.note = f"refit failed: {getattr(err, 'message', None) or err}"
-            r.confirmed = False
-            echo(f"    {r.note}")
+        _refit_row(base, r, ahead, f"refit {done}", echo)
+    for r in shared_siblings(ranked):  # the simpler hypothesis inside a confirmed group
+        _refit_row(base, r, ahead, "refit (one shared strength)", echo)
+
+
+def _refit_row(base: Baseline, r: Ranked, ahead: dict, label: str, echo) -> None:
+    """Refit ``r`` (or collect its refit submitted ahead) and fill its fields; a failure is a note."""
+    echo(f"  {label}: with {r.effect} on {r.target}")
+    t0 = time.perf_counter()
+    try:
+        if id(r) in ahead:
+            drafted, future = ahead.pop(id(r))
+            apply(base, r, refit_task.result(future), drafted)
+        else:
+            refit(base, r, refit_start(base.model, base.idata, r.candidate, r.estimate))
+        echo(f"    {evidence_text(r)} ({time.perf_counter() - t0:.0f} s)")
+    except REFIT_FAILURES as err:
+        r.note = f"refit failed: {getattr(err, 'message', None) or err}"
+        r.confirmed = False
+        echo(f"    {r.note}")
+
+
+def shared_siblings(ranked: list[Ranked]) -> list[Ranked]:
+    """The one-shared-strength group (``hinge1+hinge2``) of each confirmed group with a strength
+    per joint (``hinge1&hinge2``) that was not refitted: it nests in it with one parameter for
+    several, and where the joints' strengths are equal (a chain damped alike in every hinge) the
+    evidence, which counts parameters, prefers it; only a refit can say so."""
+    out = []
+    for r in ranked:
+        c = r.candidate
+        if not (r.confirmed and c is not None and c.joints and not c.shared):
+            continue
+        sib = next((t for t in ranked if t.candidate is not None and t.refit is None
+                    and t.confirmed is None and t.candidate.shared and t.effect == r.effect
+                    and t.candidate.joints == c.joints), None)
+        if sib is not None:
+            out.append(sib)
+    return out
 
 
 def evidence_text(r: Ranked) -> str:
@@ -132,6 +166,10 @@ def apply(base: Baseline, r: Ranked, out: dict, draft: Draft, new=None) -> None:
                  "rms_before", "rms_after", "log_evidence", "consistent_after", "fitted",
                  "confirmed"):
         setattr(r, name, out[name])
+    if not out.get("elpd_reliable", True):  # its draws cannot say: the evidence decides
+        r.confirmed = refit_task.confirmed(out, base.log_z())
+        r.note = "; ".join(filter(None, [r.note, "PSIS-LOO unreliable for this refit (Pareto k > 0.7 "
+                                         "at many points): judged on the Laplace evidence"]))
     r.snippet = snippet(base.text(), draft.text())
 
 

@@ -57,6 +57,18 @@ def loo_reliability(loo) -> str | None:
             "ΔELPD as indicative; the leave-future-out comparison does not rely on it")
 
 
+UNRELIABLE_SHARE = 0.1  # share of points with Pareto k > 0.7 above which a fit's PSIS-LOO is not evidence
+
+
+def unreliable(loo) -> bool:
+    """Whether a fit's PSIS-LOO cannot be read as evidence: Pareto k > 0.7 at more than
+    ``UNRELIABLE_SHARE`` of the points. LOO is a harmonic mean over the draws, so draws from an
+    approximation wider than the posterior (a Laplace Gaussian around a strength near its off
+    value, in log space: a banana it cannot follow) sink it however well the fit itself does."""
+    k = np.asarray(loo.pareto_k)
+    return bool(k.size and np.mean(k > 0.7) > UNRELIABLE_SHARE)
+
+
 def sum_se(points: np.ndarray) -> float:
     """Standard error of the sum of pointwise values (as arviz's ``compare``)."""
     return float(np.sqrt(points.size) * points.std())

@@ -35,7 +35,7 @@ from .candidates import REQUIRES, Candidate, physics_candidates
 from .confirm import REFIT_FAILURES
 from .edits import Draft
 from .evidence import STRONG, laplace_log_evidence
-from .loo import combined_loo, tie_margin
+from .loo import combined_loo, tie_margin, unreliable
 from .workflow import check_model, point_estimate
 
 
@@ -62,26 +62,38 @@ def judge(model, idata, report=None) -> Judged:
 
 @dataclass
 class Comparison:
-    """A new scene against the current one: ΔELPD, its tie margin and Δlog Z (None: n/a)."""
+    """A new scene against the current one: ΔELPD, its tie margin and Δlog Z (None: n/a);
+    ``loo_ok``: both fits' PSIS-LOO can be read as evidence (``loo.unreliable``)."""
 
     d_elpd: float
     margin: float
     d_log_z: float | None
+    loo_ok: bool = True
+
+    @property
+    def by_evidence(self) -> bool:
+        """Decided on Δlog Z alone: a fit's LOO is unreliable and the evidence is known."""
+        return not self.loo_ok and self.d_log_z is not None
 
     def text(self) -> str:
         z = "n/a" if self.d_log_z is None else f"{self.d_log_z:+.1f}"
-        return f"ΔELPD {self.d_elpd:+.1f} (tie margin {self.margin:.1f}), Δlog Z {z}"
+        why = "" if self.loo_ok else " (PSIS-LOO unreliable: decided on Δlog Z)"
+        return f"ΔELPD {self.d_elpd:+.1f} (tie margin {self.margin:.1f}), Δlog Z {z}{why}"
 
 
 def compare(new: Judged, old: Judged) -> Comparison:
     new_points, old_points = np.asarray(new.loo.loo_i), np.asarray(old.loo.loo_i)
     dz = None if new.log_z is None or old.log_z is None else new.log_z - old.log_z
-    return Comparison(float((new_points - old_points).sum()), tie_margin(new_points, old_points), dz)
+    return Comparison(float((new_points - old_points).sum()), tie_margin(new_points, old_points), dz,
+                      not (unreliable(new.loo) or unreliable(old.loo)))
 
 
 def swap_wins(c: Comparison) -> bool:
     """Another law beats the current one: it predicts better beyond the tie margin and the
-    evidence does not disagree, or, predicting alike, the evidence is strong (> log 10)."""
+    evidence does not disagree, or, predicting alike, the evidence is strong (> log 10); where
+    a fit's PSIS-LOO is unreliable, strong evidence alone."""
+    if c.by_evidence:
+        return c.d_log_z > STRONG
     if c.d_elpd > c.margin:
         return c.d_log_z is None or c.d_log_z > 0
     return c.d_elpd > -c.margin and c.d_log_z is not None and c.d_log_z > STRONG
@@ -89,7 +101,10 @@ def swap_wins(c: Comparison) -> bool:
 
 def drop_wins(c: Comparison) -> bool:
     """The scene without an effect (``c``: without against with) predicts as well (within the
-    tie margin) and the evidence, which counts the effect's parameter, prefers it."""
+    tie margin) and the evidence, which counts the effect's parameter, prefers it; where a
+    fit's PSIS-LOO is unreliable, the evidence alone."""
+    if c.by_evidence:
+        return c.d_log_z > 0
     return c.d_elpd > -c.margin and (c.d_log_z is None or c.d_log_z > 0)
 
 
@@ -178,6 +193,8 @@ EXPERIMENT = "the experiment that would decide"
 
 def tied(c: Comparison) -> bool:
     """Neither scene is better: ΔELPD within the tie margin and no strong evidence either way."""
+    if c.by_evidence:
+        return abs(c.d_log_z) <= STRONG
     return abs(c.d_elpd) <= c.margin and (c.d_log_z is None or abs(c.d_log_z) <= STRONG)
 
 

@@ -4,7 +4,7 @@ import warnings
 import numpy as np
 import pytest
 
-from physdsl.diagnose.loo import combined_loo, loo_reliability
+from physdsl.diagnose.loo import combined_loo, loo_reliability, unreliable
 from physdsl.infer import posterior_data
 
 
@@ -25,6 +25,22 @@ def test_loo_is_quiet_and_says_when_it_is_unreliable():
     assert abs(good.elpd_loo + 30.0) < 0.5  # 30 measurements at log density -1 +- 0.1
     assert loo_reliability(good) is None
     assert "1 of 30 measurements" in loo_reliability(bad)
+    assert not unreliable(good) and not unreliable(bad)  # one bad point of 30: still evidence
+
+
+def test_loo_of_draws_wider_than_the_posterior_is_not_evidence():
+    """Draws from an approximation wider than the posterior (a Laplace Gaussian in log space
+    around a strength near zero) put a few draws far off at every point: LOO's harmonic mean
+    sinks whatever the fit's quality, and ``unreliable`` says so."""
+    rng = np.random.default_rng(2)
+    ll = rng.normal(-1.0, 0.05, (2, 200, 40))
+    off = rng.random((2, 200)) < 0.05  # one draw in twenty far out in the banana's tail
+    ll[off] -= rng.exponential(30.0, (int(off.sum()), 40))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        loo = combined_loo(_idata(ll))
+    assert loo.elpd_loo < -40.0 * 1.5  # far below the -40 of the draws near the mode
+    assert unreliable(loo)
 
 
 def test_points_no_unknown_moves_have_their_exact_loo_density():

@@ -105,6 +105,38 @@ def test_swap_and_drop_rules():
     assert not tied(Comparison(9.0, 8.0, 0.0)) and not tied(Comparison(1.0, 8.0, -3.0))
 
 
+def test_where_psis_loo_is_unreliable_the_evidence_decides():
+    """A fit whose PSIS-LOO is unreliable (draws of an approximation wider than the posterior)
+    has a meaningless ELPD: ΔELPD -3864 with the RMS falling 1.00σ -> 0.97σ was measured on
+    the double pendulum (Coulomb friction added beside damping on the elbow, whose damping then
+    sits near zero). The Laplace evidence decides instead; with it n/a, ΔELPD as before."""
+    assert swap_wins(Comparison(-3864.0, 870.0, 22.0, loo_ok=False))
+    assert not swap_wins(Comparison(+3864.0, 870.0, 1.0, loo_ok=False))  # evidence not strong
+    assert drop_wins(Comparison(-3864.0, 870.0, 0.5, loo_ok=False))
+    assert not drop_wins(Comparison(+3864.0, 870.0, -2.0, loo_ok=False))
+    assert tied(Comparison(-3864.0, 870.0, 1.0, loo_ok=False))
+    assert not tied(Comparison(1.0, 870.0, 5.0, loo_ok=False))
+    assert not swap_wins(Comparison(-3864.0, 870.0, None, loo_ok=False))  # n/a: ΔELPD decides
+
+
+def test_a_refit_is_confirmed_near_the_noise_on_the_check_not_an_rms_cut():
+    """``refit_task.confirmed``: at 1.00σ with systematic residuals (runs test), a refit can only
+    lower the RMS a little (0.97σ); far from the noise it must take a tenth of the excess; where
+    its PSIS-LOO is unreliable, strong Laplace evidence stands in for ΔELPD."""
+    from physdsl.diagnose.refit_task import confirmed
+
+    good = {"elpd_reliable": True, "delta_elpd": 40.0, "delta_elpd_se": 8.0, "delta_lfo": 9.0,
+            "log_evidence": 4447.0, "rms_before": 1.00, "rms_after": 0.97}
+    assert confirmed(good)
+    assert not confirmed({**good, "rms_after": 1.01})
+    assert confirmed({**good, "rms_before": 7.14, "rms_after": 6.4})
+    assert not confirmed({**good, "rms_before": 7.14, "rms_after": 6.6})
+    assert not confirmed({**good, "delta_lfo": -1.0})
+    wild = {**good, "elpd_reliable": False, "delta_elpd": -3864.0, "delta_elpd_se": 434.0}
+    assert confirmed(wild, base_log_z=4425.0)  # Δlog Z +22
+    assert not confirmed(wild, base_log_z=4446.0) and not confirmed(wild, base_log_z=None)
+
+
 # a steep throw: 20 m/s up, 2 m/s at the top, hidden quadratic drag; linear drag cannot bend the
 # trajectory alike at both speeds
 STEEP = """\
@@ -219,3 +251,23 @@ def test_refine_revise_names_an_effect_the_scene_lacks(tmp_path, capsys):
                             "linear_drag@bob"], capsys)
     assert code == 2 and "--revise linear_drag@bob" in err and "EFFECT@TARGET" in err
     assert "Traceback" not in err and not (tmp_path / "out").exists()
+
+
+def test_a_confirmed_group_with_a_strength_per_joint_brings_its_shared_strength_to_a_refit():
+    """``confirm.shared_siblings``: damping per hinge confirmed, the same law with one shared
+    strength (not refitted: the refits stopped once one explained the misfit) is refitted too,
+    so the evidence can prefer one strength for four where the hinges are damped alike."""
+    from physdsl.diagnose.confirm import shared_siblings
+    from physdsl.diagnose.diagnosis import Ranked
+
+    def row(name, target, **kw):
+        c = Candidate("effect", name, (target,))
+        return Ranked(1, "effect", name, target, 10.0, 1e-9, 4, -20.0, 3.0, 0.01, candidate=c, **kw)
+
+    each = row("joint_damping", "h1&h2&h3&h4", confirmed=True)
+    shared = row("joint_damping", "h1+h2+h3+h4")
+    other_law = row("joint_friction", "h1+h2+h3+h4")
+    assert shared_siblings([each, row("joint_friction", "h1&h2&h3&h4"), shared, other_law]) == [shared]
+    assert shared_siblings([row("joint_damping", "h1&h2&h3&h4", confirmed=False), shared]) == []
+    shared.confirmed = True  # refitted already (ranked before the refits stopped)
+    assert shared_siblings([each, shared]) == []
