@@ -18,6 +18,11 @@ the width ratio. Printed:
   with no discrepancy found).
 
 Run: .venv/bin/python benchmarks/coverage.py [--case pendulum ...] [--samples 500]
+
+``--saved DIR`` re-reads the posteriors ``fits.py --save DIR`` wrote (DIR/CASE.nc, fits.py's
+cases) and recomputes the robust intervals with the current method, without refitting: the
+same fits' intervals before and after a change of ``infer/intervals.py`` (``--no-hac``: the
+method without the scores' HAC term, as before issue 21's last change).
 """
 from __future__ import annotations
 
@@ -103,13 +108,101 @@ def run_case(name: str, samples: int) -> dict:
             "block_note": block.get("note", "")}
 
 
+def saved_case(name: str, path: Path, hac: bool = True) -> dict:
+    """One fits.py case's saved posterior: the robust intervals recomputed now (the draws,
+    their predictions and the scene are those of the fit), per true component in
+    ``run_case``'s form, and the CPU seconds the intervals took."""
+    import jax
+    import numpy as np
+    from jax.flatten_util import ravel_pytree
+    from numpyro.infer.util import unconstrain_fn
+
+    import fits
+    from physdsl.compile import Model
+    from physdsl.infer import intervals, posterior_data
+    from physdsl.infer.problem import model_problem
+    from physdsl.syntax import loads
+
+    folder, scene = fits.cases()[name]
+    model = Model(loads(fits.scene_text(folder, scene), filename=str(folder / "scene.phys"),
+                        base_dir=folder))
+    idata = posterior_data.read(path)
+    post = posterior_data.group(idata, "posterior")
+    pred = posterior_data.group(idata, "posterior_predictive")
+    chains, draws = post.sizes["chain"], post.sizes["draw"]
+    flat_of = lambda ds, k: np.asarray(ds[k].values).reshape(chains * draws, *ds[k].shape[2:])  # noqa: E731
+    values = {k: flat_of(post, k) for k in model.unknown_names}
+    ravel = jax.jit(jax.vmap(lambda v: ravel_pytree(unconstrain_fn(model.prior_values, (), {}, v))[0]))
+    flat = np.asarray(ravel(values)).reshape(chains, draws, -1)
+    constrained = {**values, **{k: flat_of(pred, k) for k in pred.data_vars}}
+    fresh = posterior_data.from_dict({"posterior": {k: np.asarray(post[k].values)
+                                                   for k in model.unknown_names}})
+    level = intervals.HAC_LEVEL
+    intervals.HAC_LEVEL = level if hac else 0.0
+    t0 = time.process_time()
+    try:
+        fresh = intervals.add_robust(fresh, model, model_problem(model), flat, constrained)
+    finally:
+        intervals.HAC_LEVEL = level
+    cpu = time.process_time() - t0
+    robust = posterior_data.group(fresh, intervals.GROUP)
+    truth = json.loads((folder / "truth.json").read_text()).get("parameters", {})
+    rows = []
+    for k, v in truth.items():
+        if k not in values:
+            continue
+        a, b = flat_of(post, k).reshape(chains * draws, -1), flat_of(robust, k).reshape(chains * draws, -1)
+        for i, x in enumerate(np.ravel(v)):
+            qa, qb = np.quantile(a[:, i], [0.05, 0.95]), np.quantile(b[:, i], [0.05, 0.95])
+            rows.append({"param": k if np.size(v) == 1 else f"{k}[{i}]", "truth": float(x),
+                         "model": [float(qa[0]), float(qa[1])], "robust": [float(qb[0]), float(qb[1])],
+                         "in_model": bool(qa[0] <= x <= qa[1]), "in_robust": bool(qb[0] <= x <= qb[1]),
+                         "ratio": float((qb[1] - qb[0]) / max(qa[1] - qa[0], 1e-300))})
+    block = json.loads(robust.attrs.get("block_check", "{}"))
+    return {"rows": rows, "intervals_cpu_s": cpu, "hac": json.loads(robust.attrs.get("score_hac", "{}")),
+            "block_p": block.get("p_value"), "block_factors": block.get("factors")}
+
+
+def main_saved(folder: str, names: list[str], hac: bool) -> None:
+    """``--saved``: per case and component, the plain and the recomputed robust interval."""
+    import numpy as np
+
+    rows = []
+    for path in sorted(Path(folder).glob("*.nc")):
+        if names and path.stem not in names:
+            continue
+        out = saved_case(path.stem, path, hac)
+        rows += out["rows"]
+        p = out["block_p"]
+        print(f"case.{path.stem}: intervals {out['intervals_cpu_s']:.1f} s CPU; block check p "
+              f"{'n/a' if p is None else f'{p:.3g}'}; HAC lags "
+              f"{out['hac'].get('bandwidth_lags', float('nan')):.1f}", flush=True)
+        for r in out["rows"]:
+            print(f"row.{path.stem}.{r['param']}: truth {r['truth']:.6g} model [{r['model'][0]:.6g}, "
+                  f"{r['model'][1]:.6g}] {'in' if r['in_model'] else 'OUT'} robust "
+                  f"[{r['robust'][0]:.6g}, {r['robust'][1]:.6g}] "
+                  f"{'in' if r['in_robust'] else 'OUT'} ratio {r['ratio']:.2f}", flush=True)
+        print(f"coverage_90.{path.stem}: model {np.mean([r['in_model'] for r in out['rows']]):.3f} "
+              f"robust {np.mean([r['in_robust'] for r in out['rows']]):.3f}", flush=True)
+    if rows:
+        print(f"coverage_90.model: {np.mean([r['in_model'] for r in rows]):.3f} "
+              f"({sum(r['in_model'] for r in rows)} of {len(rows)})")
+        print(f"coverage_90.robust: {np.mean([r['in_robust'] for r in rows]):.3f} "
+              f"({sum(r['in_robust'] for r in rows)} of {len(rows)})")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--case", action="append", help="only these cases")
     ap.add_argument("--samples", type=int, default=500, help="Laplace draws per chain")
     ap.add_argument("--timeout", type=float, default=1500.0, help="seconds per case")
+    ap.add_argument("--saved", help="recompute the intervals of fits.py --save DIR's posteriors")
+    ap.add_argument("--no-hac", action="store_true", help="with --saved: without the HAC term")
     ap.add_argument("--one", help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.saved:
+        main_saved(args.saved, args.case or [], not args.no_hac)
+        return
     if args.one:
         print(json.dumps(run_case(args.one, args.samples)))
         return

@@ -20,6 +20,11 @@ mean in unconstrained space (supports hold): along each direction where V exceed
 posterior covariance (generalised eigenvalues above 1) the spread grows to V's, elsewhere it
 is kept, so intervals only widen. Noise-scale unknowns keep their posterior.
 
+A misfit confined to part of the record (an impact) is averaged away by those stationary
+residual models; the scores' own long-run covariance (Newey-West over psi_t = C_t r_t, all
+components on one time grid) counts it where it is, and replaces the REML sandwich along the
+directions where it exceeds it by more than its chance excess under the model.
+
 A mismatch the residuals cannot show (white at the stated level, the error absorbed by the
 unknowns) is caught by ``block_check``: refits with one time block left out that scatter more
 than the noise explains widen each unknown to the spread of what the blocks say, beyond the
@@ -48,6 +53,7 @@ SHOWN = ("robust", "model")  # what summary.csv shows: ``--intervals``
 GROUP = "posterior_robust"
 METHOD = "sandwich, REML residual covariance"
 BLOCK_METHOD = "block refits"
+HAC_METHOD = "score HAC"  # where the scores' long-run covariance widened some direction
 
 
 # -- the residuals' covariance: white noise plus a smooth discrepancy, fitted by REML ------
@@ -220,15 +226,15 @@ def _score_series(parts, rows: int) -> tuple[np.ndarray, np.ndarray]:
     return psi, G
 
 
-def _combine(M1: np.ndarray, M2: np.ndarray, G: np.ndarray, lags: float) -> np.ndarray:
-    """M1 plus the part of (M2 - M1) that its sampling error under the model cannot explain
-    (whitened: the posterior is I): at least the REML sandwich everywhere, and the HAC
-    estimate along the directions where it is clearly larger."""
+def _combine(M1: np.ndarray, M2: np.ndarray, G: np.ndarray, lags: float):
+    """(M1 plus the part of (M2 - M1) that its sampling error under the model cannot explain,
+    how many directions took it) (whitened: the posterior is I): at least the REML sandwich
+    everywhere, and the HAC estimate along the directions where it is clearly larger."""
     lam, U = np.linalg.eigh(0.5 * ((M2 - M1) + (M2 - M1).T))
     level = HAC_LEVEL / max(len(lam), 1)
     big = np.array([lam[i] > 0 and lam[i] > hac_excess(G, U[:, i], lags, level)
                     for i in range(len(lam))], dtype=bool)
-    return M1 + (U[:, big] * lam[big]) @ U[:, big].T
+    return M1 + (U[:, big] * lam[big]) @ U[:, big].T, int(big.sum())
 
 
 def robust_covariance(draws: np.ndarray, streams: list[tuple[np.ndarray, np.ndarray, np.ndarray]]):
@@ -261,10 +267,10 @@ def robust_covariance(draws: np.ndarray, streams: list[tuple[np.ndarray, np.ndar
     if parts:
         psi, G = _score_series(parts, MAX_ROWS)
         omega, lags = hac_covariance(psi)
-        M = _combine(Li @ V @ Li.T, omega, G, lags)
+        M, used = _combine(Li @ V @ Li.T, omega, G, lags)
         V = L @ (0.5 * (M + M.T)) @ L.T
         fits.append({"kind": "hac", "bandwidth_lags": lags, "rows": int(psi.shape[0]),
-                     "largest": float(np.linalg.eigvalsh(omega).max())})
+                     "largest": float(np.linalg.eigvalsh(omega).max()), "directions": used})
     return V, fits
 
 
@@ -306,7 +312,8 @@ def add_robust(idata, model, problem, flat: np.ndarray, constrained: dict, shown
     fits = [fit for fit in fits if fit["kind"] != "hac"]
     found = [fit for fit in fits if fit["kind"] in KERNELS]
     posterior_data.add_group(idata, GROUP, post, {
-        "method": METHOD + (" + " + BLOCK_METHOD if block and "p_value" in block else ""),
+        "method": METHOD + (" + " + HAC_METHOD if hac and hac[0]["directions"] else "")
+        + (" + " + BLOCK_METHOD if block and "p_value" in block else ""),
         "max_widening": float(max(f.max(initial=1.0), widest.max(initial=1.0))),
         "block_check": json.dumps(block if block is not None else {"note": "not run"}),
         "residual_models": json.dumps(fits),
