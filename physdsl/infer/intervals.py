@@ -188,14 +188,13 @@ def hac_covariance(psi: np.ndarray) -> tuple[np.ndarray, float]:
     return 0.5 * (omega + omega.T), L
 
 
-def hac_excess(G: np.ndarray, u: np.ndarray, lags: float, level: float) -> float:
-    """How far above its mean ``hac_covariance``'s variance along the unit direction ``u``
-    comes by chance, at ``level``, if the model were right (psi_t = c_t e_t, e white at the
-    stated noise): the estimate is a quadratic form in Gaussians, of mean sum_t a_t and
-    variance 2 sum_ts w_ts^2 a_t a_s (a_t = u^T G_t u, G (M, d, d): per bin, the components'
-    sum of c c^T), taken as a scaled chi-square with those two moments (Satterthwaite). Few
-    informative rows (the end of a record, an impact) make it large."""
-    a = np.einsum("tij,i,j->t", G, u, u)
+def hac_excess(a: np.ndarray, lags: float, level: float) -> float:
+    """How far above its mean ``hac_covariance``'s variance along a unit direction u comes by
+    chance, at ``level``, if the model were right (psi_t = c_t e_t, e white at the stated
+    noise): the estimate is a quadratic form in Gaussians, of mean sum_t a_t and variance
+    2 sum_ts w_ts^2 a_t a_s (``a`` (M,): a_t = E (u . psi_t)^2, the bin's sum of (u . c)^2),
+    taken as a scaled chi-square with those two moments (Satterthwaite). Few informative rows
+    (the end of a record, an impact) make it large."""
     mean, total = float(a.sum()), float(a @ a)
     for j in range(1, int(np.floor(lags)) + 1):
         total += 2.0 * (1.0 - j / (lags + 1.0)) ** 2 * float(a[j:] @ a[:-j])
@@ -205,12 +204,12 @@ def hac_excess(G: np.ndarray, u: np.ndarray, lags: float, level: float) -> float
     return mean * (float(chi2.isf(level, nu)) / nu - 1.0)
 
 
-def _score_series(parts, rows: int) -> tuple[np.ndarray, np.ndarray]:
-    """(psi (M, d), G (M, d, d)) on one time grid of at most ``rows`` bins over the span of
-    ``parts`` [(times (N,), c (N, d), residuals (N,))], every residual component's: per bin,
-    the sum of the scores psi_t = c_t r_t (components measured at the same time together:
-    their misfits are correlated, e.g. at an impact) and of c_t c_t^T (what E psi_t psi_t^T
-    would be with white residuals at the stated noise)."""
+def _score_series(parts, rows: int):
+    """(psi (M, d), a) on one time grid of at most ``rows`` bins over the span of ``parts``
+    [(times (N,), c (N, d), residuals (N,))], every residual component's: per bin, the sum of
+    the scores psi_t = c_t r_t (components measured at the same time together: their misfits
+    are correlated, e.g. at an impact); ``a(u)`` -> (M,): per bin, the sum of (u . c_t)^2, what
+    E (u . psi_t)^2 would be with white residuals at the stated noise."""
     t = np.concatenate([p[0] for p in parts])
     c = np.concatenate([p[1] for p in parts])
     r = np.concatenate([p[2] for p in parts])
@@ -221,18 +220,17 @@ def _score_series(parts, rows: int) -> tuple[np.ndarray, np.ndarray]:
     idx = np.minimum(((t - lo) / max(hi - lo, 1e-300) * m).astype(int), m - 1)
     psi = np.zeros((m, c.shape[1]))
     np.add.at(psi, idx, c * r[:, None])
-    G = np.zeros((m, c.shape[1], c.shape[1]))
-    np.add.at(G, idx, c[:, :, None] * c[:, None, :])
-    return psi, G
+    return psi, lambda u: np.bincount(idx, weights=(c @ u) ** 2, minlength=m)
 
 
-def _combine(M1: np.ndarray, M2: np.ndarray, G: np.ndarray, lags: float):
+def _combine(M1: np.ndarray, M2: np.ndarray, a, lags: float):
     """(M1 plus the part of (M2 - M1) that its sampling error under the model cannot explain,
     how many directions took it) (whitened: the posterior is I): at least the REML sandwich
-    everywhere, and the HAC estimate along the directions where it is clearly larger."""
+    everywhere, and the HAC estimate along the directions where it is clearly larger.
+    ``a``: ``_score_series``'s per-bin expected squares along a direction."""
     lam, U = np.linalg.eigh(0.5 * ((M2 - M1) + (M2 - M1).T))
     level = HAC_LEVEL / max(len(lam), 1)
-    big = np.array([lam[i] > 0 and lam[i] > hac_excess(G, U[:, i], lags, level)
+    big = np.array([lam[i] > 0 and lam[i] > hac_excess(a(U[:, i]), lags, level)
                     for i in range(len(lam))], dtype=bool)
     return M1 + (U[:, big] * lam[big]) @ U[:, big].T, int(big.sum())
 
@@ -265,9 +263,9 @@ def robust_covariance(draws: np.ndarray, streams: list[tuple[np.ndarray, np.ndar
             fits.append(fit)
     V = 0.5 * (V + V.T)
     if parts:
-        psi, G = _score_series(parts, MAX_ROWS)
+        psi, a = _score_series(parts, MAX_ROWS)
         omega, lags = hac_covariance(psi)
-        M, used = _combine(Li @ V @ Li.T, omega, G, lags)
+        M, used = _combine(Li @ V @ Li.T, omega, a, lags)
         V = L @ (0.5 * (M + M.T)) @ L.T
         fits.append({"kind": "hac", "bandwidth_lags": lags, "rows": int(psi.shape[0]),
                      "largest": float(np.linalg.eigvalsh(omega).max()), "directions": used})
