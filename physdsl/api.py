@@ -163,17 +163,18 @@ def control(model: Model, goal: Goal | None = None, idata=None, *, outdir: str |
 
 def mpc(model: Model, plant, duration: float, *, refit_every: int = 10, initial=None,
         seed: int = 0, outdir: str | Path | None = None, force: bool = False, settle: float = 0.0,
-        settings: dict | None = None, on_step=None):
+        settings: dict | None = None, on_step=None, early_refits: int = 0):
     """Drive ``plant`` (an object with ``period``, ``reset()``, ``step()``; or an MJCF path or
     ``"module:factory"``) for ``duration`` seconds by iLQR over the scene's horizon, refitting
-    the scene's physical unknowns every ``refit_every`` periods; an ``MpcResult`` (files in
+    the scene's physical unknowns every ``refit_every`` periods (and after each of the first
+    ``early_refits`` transitions, from all so far); an ``MpcResult`` (files in
     ``outdir``: trajectory.csv, estimates.csv, mpc.json, judged from ``settle`` s on)."""
     controller = _mpc.Controller(model)
     if isinstance(plant, (str, Path)):
         plant = load_plant(plant, period=controller.transition.period, initial=initial or {},
                            seed=seed)
     result = _mpc.run(model, plant, duration, refit_every=refit_every, controller=controller,
-                      on_step=on_step)
+                      on_step=on_step, early=tuple(range(1, early_refits + 1)))
     if outdir is not None:
         mpc_files.write(result, outdir, settle=settle, force=force, settings=settings)
     return result

@@ -42,6 +42,10 @@ def register(app: typer.Typer) -> None:
         duration: float = typer.Option(3.0, "--duration", min=0.0, help="Plant time to run (s)."),
         refit_every: int = typer.Option(10, "--refit-every", min=0,
                                         help="Control periods between refits (0: never refit)."),
+        early_refits: int = typer.Option(0, "--early-refits", min=0,
+                                         help="Also refit after each of the first N transitions "
+                                              "(from all so far: a far-off model is corrected "
+                                              "before a fast system is lost)."),
         initial: Optional[str] = typer.Option(None, "--initial",
                                               help="Plant's initial joint values, SI: "
                                                    "'pole_hinge=3.19,cart_slider=0'."),
@@ -66,10 +70,11 @@ def register(app: typer.Typer) -> None:
                 print(f"t {t:.2f} s: u {', '.join(f'{v:.3g}' for v in u)}", file=sys.stderr)
 
         settings = {"scene": str(scene), "plant": plant, "duration_s": duration,
-                    "refit_every": refit_every, "initial": start, "seed": seed}
+                    "refit_every": refit_every, "early_refits": early_refits, "initial": start,
+                    "seed": seed}
         result = api.mpc(model, plant, duration, refit_every=refit_every, initial=start, seed=seed,
                          outdir=out, force=True, settle=settle, settings=settings,
-                         on_step=progress)
+                         on_step=progress, early_refits=early_refits)
         summary = mpc_files.summary(result, settle)
         for joint, e in summary["hold_errors"].items():
             typer.echo(f"{joint}: max error {e['max_error']:.4g} (within {e['within']:g})")

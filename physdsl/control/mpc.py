@@ -210,10 +210,19 @@ class Controller:
                         + [obs.velocity[j] for j in self.transition.joints], dtype=float)
 
 
+def refit_due(k: int, refit_every: int, early: tuple[int, ...] = ()) -> bool:
+    """Whether a refit follows the ``k``-th transition (1-based): every ``refit_every``, and
+    after each count in ``early`` (refits before the first regular one: a model far from the
+    plant is corrected while the first transitions arrive, before a fast system is lost)."""
+    return bool(refit_every) and (k % refit_every == 0 or k in early)
+
+
 def run(model: Model, plant: Plant, duration: float, *, refit_every: int = REFIT_EVERY,
-        controller: Controller | None = None, on_step=None) -> MpcResult:
+        early: tuple[int, ...] = (), controller: Controller | None = None,
+        on_step=None) -> MpcResult:
     """Drive ``plant`` for ``duration`` s; ``refit_every`` 0 never refits (the prior's centre
-    throughout). ``on_step(k, t, x, u, z)`` hears of each period."""
+    throughout); ``early``: extra refits after these numbers of transitions (``refit_due``).
+    ``on_step(k, t, x, u, z)`` hears of each period."""
     ctl = controller or Controller(model)
     tr = ctl.transition
     if not np.isclose(plant.period, tr.period, rtol=1e-6):
@@ -251,14 +260,17 @@ def run(model: Model, plant: Plant, duration: float, *, refit_every: int = REFIT
         W = jnp.concatenate([W[1:], W[-1:]])  # the warm start of the next period
         X = jnp.concatenate([X[1:], X[-1:]])
         times.append(obs.t), states.append(x), forces.append(u)
-        if refit_every and tr.physical and (k + 1) % refit_every == 0:
+        if tr.physical and refit_due(k + 1, refit_every, early):
             start = time.perf_counter()
-            z, precision = jax.block_until_ready(ctl.fit(
+            z, fitted = jax.block_until_ready(ctl.fit(
                 z, memory.x, memory.u, memory.x_next, memory.mask, z, precision, first))
-            first = 0.0
-            memory.clear()
+            if k + 1 >= refit_every:  # a regular refit: its Laplace is the next one's prior
+                precision, first = fitted, 0.0
+                memory.clear()
+            # an early refit: every transition so far under the scene's prior (a few
+            # transitions' Laplace would be a narrow prior in directions they barely inform)
             end = ctl.terminal(z, end)
-            estimates.append(_estimate(tr, k + 1, obs.t, z, jnp.linalg.inv(precision),
+            estimates.append(_estimate(tr, k + 1, obs.t, z, jnp.linalg.inv(fitted),
                                        1e3 * (time.perf_counter() - start)))
         if on_step is not None:
             on_step(k, obs.t, x, u, z)
