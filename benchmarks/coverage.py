@@ -63,6 +63,38 @@ def truth_values(folder: Path, names) -> dict:
     return {k: values[k] for k in names if k in values}
 
 
+def interval_rows(truth: dict, model_post, robust_post) -> list[dict]:
+    """Per true component: its 5-95% interval in the model posterior and in the robust one
+    (datasets of draws (chain, draw, ...)), whether each holds it, and their width ratio."""
+    import numpy as np
+
+    rows = []
+    for k, v in truth.items():
+        a = np.asarray(model_post[k].values).reshape(-1, np.size(v))
+        b = np.asarray(robust_post[k].values).reshape(-1, np.size(v))
+        for i, x in enumerate(np.ravel(v)):
+            qa, qb = np.quantile(a[:, i], [0.05, 0.95]), np.quantile(b[:, i], [0.05, 0.95])
+            rows.append({"param": k if np.size(v) == 1 else f"{k}[{i}]", "truth": float(x),
+                         "model": [float(qa[0]), float(qa[1])], "robust": [float(qb[0]), float(qb[1])],
+                         "in_model": bool(qa[0] <= x <= qa[1]), "in_robust": bool(qb[0] <= x <= qb[1]),
+                         "ratio": float((qb[1] - qb[0]) / max(qa[1] - qa[0], 1e-300))})
+    return rows
+
+
+def _print_rows(name: str, rows: list[dict]) -> None:
+    for r in rows:
+        print(f"row.{name}.{r['param']}: truth {r['truth']:.6g} model [{r['model'][0]:.6g}, "
+              f"{r['model'][1]:.6g}] {'in' if r['in_model'] else 'OUT'} robust "
+              f"[{r['robust'][0]:.6g}, {r['robust'][1]:.6g}] "
+              f"{'in' if r['in_robust'] else 'OUT'} ratio {r['ratio']:.2f}", flush=True)
+
+
+def _print_totals(rows: list[dict]) -> None:
+    for kind in ("model", "robust"):
+        inside = [r[f"in_{kind}"] for r in rows]
+        print(f"coverage_90.{kind}: {sum(inside) / len(inside):.3f} ({sum(inside)} of {len(inside)})")
+
+
 def run_case(name: str, samples: int) -> dict:
     """Fit one case in this process: per true component, the two intervals."""
     import numpy as np
@@ -80,16 +112,7 @@ def run_case(name: str, samples: int) -> dict:
     idata = physdsl.infer(model, backend="map", chains=2, samples=samples, progress=False)
     wall = time.time() - t0
     truth = truth_values(folder, model.unknown_names)
-    rows = []
-    for k, v in truth.items():
-        a = np.asarray(idata.posterior[k].values).reshape(-1, np.size(v))
-        b = np.asarray(getattr(idata, GROUP)[k].values).reshape(-1, np.size(v))
-        for i, x in enumerate(np.ravel(v)):
-            qa, qb = np.quantile(a[:, i], [0.05, 0.95]), np.quantile(b[:, i], [0.05, 0.95])
-            rows.append({"param": k if np.size(v) == 1 else f"{k}[{i}]", "truth": float(x),
-                         "model": [float(qa[0]), float(qa[1])], "robust": [float(qb[0]), float(qb[1])],
-                         "in_model": bool(qa[0] <= x <= qa[1]), "in_robust": bool(qb[0] <= x <= qb[1]),
-                         "ratio": float((qb[1] - qb[0]) / max(qa[1] - qa[0], 1e-300))})
+    rows = interval_rows(truth, idata.posterior, getattr(idata, GROUP))
     sq, n = 0.0, 0
     pp = idata.posterior_predictive
     mean_values = {u: np.asarray(idata.posterior[u].values).mean(axis=(0, 1)) for u in model.unknown_names}
@@ -147,17 +170,7 @@ def saved_case(name: str, path: Path, hac: bool = True) -> dict:
     cpu = time.process_time() - t0
     robust = posterior_data.group(fresh, intervals.GROUP)
     truth = json.loads((folder / "truth.json").read_text()).get("parameters", {})
-    rows = []
-    for k, v in truth.items():
-        if k not in values:
-            continue
-        a, b = flat_of(post, k).reshape(chains * draws, -1), flat_of(robust, k).reshape(chains * draws, -1)
-        for i, x in enumerate(np.ravel(v)):
-            qa, qb = np.quantile(a[:, i], [0.05, 0.95]), np.quantile(b[:, i], [0.05, 0.95])
-            rows.append({"param": k if np.size(v) == 1 else f"{k}[{i}]", "truth": float(x),
-                         "model": [float(qa[0]), float(qa[1])], "robust": [float(qb[0]), float(qb[1])],
-                         "in_model": bool(qa[0] <= x <= qa[1]), "in_robust": bool(qb[0] <= x <= qb[1]),
-                         "ratio": float((qb[1] - qb[0]) / max(qa[1] - qa[0], 1e-300))})
+    rows = interval_rows({k: v for k, v in truth.items() if k in values}, post, robust)
     block = json.loads(robust.attrs.get("block_check", "{}"))
     return {"rows": rows, "intervals_cpu_s": cpu, "hac": json.loads(robust.attrs.get("score_hac", "{}")),
             "block_p": block.get("p_value"), "block_factors": block.get("factors")}
@@ -177,18 +190,11 @@ def main_saved(folder: str, names: list[str], hac: bool) -> None:
         print(f"case.{path.stem}: intervals {out['intervals_cpu_s']:.1f} s CPU; block check p "
               f"{'n/a' if p is None else f'{p:.3g}'}; HAC lags "
               f"{out['hac'].get('bandwidth_lags', float('nan')):.1f}", flush=True)
-        for r in out["rows"]:
-            print(f"row.{path.stem}.{r['param']}: truth {r['truth']:.6g} model [{r['model'][0]:.6g}, "
-                  f"{r['model'][1]:.6g}] {'in' if r['in_model'] else 'OUT'} robust "
-                  f"[{r['robust'][0]:.6g}, {r['robust'][1]:.6g}] "
-                  f"{'in' if r['in_robust'] else 'OUT'} ratio {r['ratio']:.2f}", flush=True)
+        _print_rows(path.stem, out["rows"])
         print(f"coverage_90.{path.stem}: model {np.mean([r['in_model'] for r in out['rows']]):.3f} "
               f"robust {np.mean([r['in_robust'] for r in out['rows']]):.3f}", flush=True)
     if rows:
-        print(f"coverage_90.model: {np.mean([r['in_model'] for r in rows]):.3f} "
-              f"({sum(r['in_model'] for r in rows)} of {len(rows)})")
-        print(f"coverage_90.robust: {np.mean([r['in_robust'] for r in rows]):.3f} "
-              f"({sum(r['in_robust'] for r in rows)} of {len(rows)})")
+        _print_totals(rows)
 
 
 def main() -> None:
@@ -229,11 +235,7 @@ def main() -> None:
         print(f"case.{name}: rms {out['rms']:.3f} sigma; discrepancies {out['discrepancies']}; "
               f"fit {out['wall_s']:.0f} s (wall {time.time() - t0:.0f} s, load "
               f"{os.getloadavg()[0]:.1f})", flush=True)
-        for r in out["rows"]:
-            print(f"row.{name}.{r['param']}: truth {r['truth']:.6g} model [{r['model'][0]:.6g}, "
-                  f"{r['model'][1]:.6g}] {'in' if r['in_model'] else 'OUT'} robust "
-                  f"[{r['robust'][0]:.6g}, {r['robust'][1]:.6g}] "
-                  f"{'in' if r['in_robust'] else 'OUT'} ratio {r['ratio']:.2f}", flush=True)
+        _print_rows(name, out["rows"])
     rows = [r for out in results.values() for r in out["rows"]]
     if not rows:
         return
@@ -241,10 +243,7 @@ def main() -> None:
 
     white = [r["ratio"] for out in results.values() if out["rms"] <= 1.05
              and out["discrepancies"].startswith("0 ") for r in out["rows"]]
-    print(f"coverage_90.model: {np.mean([r['in_model'] for r in rows]):.3f} "
-          f"({sum(r['in_model'] for r in rows)} of {len(rows)})")
-    print(f"coverage_90.robust: {np.mean([r['in_robust'] for r in rows]):.3f} "
-          f"({sum(r['in_robust'] for r in rows)} of {len(rows)})")
+    _print_totals(rows)
     print(f"width_ratio.median: {np.median([r['ratio'] for r in rows]):.2f}")
     print(f"width_ratio.max_white: {max(white):.2f}" if white else "width_ratio.max_white: n/a")
 

@@ -95,14 +95,20 @@ def run_case(name: str, samples: int, seed: int, save: str = "") -> dict:
             "coverage": float(np.mean(inside)) if inside else None, "n_params": len(inside)}
 
 
+def _cpu_since(before) -> float:
+    """CPU seconds (user + system) of the children reaped since ``before`` (a getrusage)."""
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+
+
 def _run_child(name: str, cmd: list[str], timeout: float) -> dict:
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
-    except subprocess.TimeoutExpired:
-        return {"case": name, "error": f"did not finish within {timeout:.0f} s"}
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+    except subprocess.TimeoutExpired:  # (the child is killed and reaped: its CPU is counted)
+        return {"case": name, "error": f"did not finish within {timeout:.0f} s "
+                                       f"({_cpu_since(before):.0f} s CPU)"}
+    cpu = _cpu_since(before)
     line = next((ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")), None)
     if line is not None:
         return {**json.loads(line[len("RESULT "):]), "cpu": cpu}
