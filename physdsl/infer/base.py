@@ -66,6 +66,9 @@ class Problem(NamedTuple):
     # J^T J: the likelihood's Gauss-Newton curvature), and flat -> the Hessian of -log prior
     gauss_newton: Callable[[jax.Array, Any], tuple] | None = None
     prior_hessian: Callable[[jax.Array], jax.Array] | None = None
+    # where least squares: (flat, data) -> (sites, pointwise log-likelihood, log p) of one
+    # draw through the scene's compiled rollout (``problem.draw_function``), else None
+    draw: Callable[[jax.Array, Any], tuple] | None = None
 
 
 class Backend:
@@ -124,7 +127,12 @@ def value_and_grad_fn(problem: Problem):
 
 def value_fn(problem: Problem):
     """x -> log density alone at ``problem``'s data (no tangents: a fraction of the cost of
-    ``value_and_grad_fn`` on contact scenes); compiled once per scene structure."""
+    ``value_and_grad_fn`` on contact scenes); compiled once per scene structure. Where the
+    Problem has ``draw`` (least squares), that: the posterior pass's function, whose rollout
+    is the scene's one compiled rollout (shared with the predictions and the fit's quality)."""
+    if problem.draw is not None:
+        data = problem.data
+        return lambda x: problem.draw(x, data)[2]
     f = cached(problem, "value", lambda: jax.jit(problem.logdensity))
     data = problem.data
     return lambda x: f(x, data)

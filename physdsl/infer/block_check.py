@@ -30,8 +30,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import chi2
 
-from .backends.map import FOUND_MODES, find_mode
-from .base import gauss_newton_fn
+from .backends.map import FOUND_MODES, find_mode, levenberg_marquardt
+from .base import gauss_newton_fn, value_fn
 
 BLOCKS = 8  # contiguous time blocks, each left out once
 # Levenberg-Marquardt steps per refit, warm-started at the full mode: leaving out one block
@@ -102,8 +102,9 @@ def block_factors(problem, mode, keep, scale=None, on_block=None) -> dict | None
     z2, stat, dof = [], 0.0, 0
     for k in range(len(edges) - 1):
         sub = without_block(problem, edges[k], edges[k + 1], k == len(edges) - 2)
-        x = find_mode(sub, mode, STEPS)
-        _, _, Hs = gauss_newton_fn(sub)(x)
+        gn_sub = _remembered(gauss_newton_fn(sub))
+        x = levenberg_marquardt(gn_sub, mode, STEPS, value_fn(sub))  # (``find_mode``)
+        _, _, Hs = gn_sub(x)  # the refit's last step evaluated it there: not again
         if on_block is not None:
             on_block(1)
         try:
@@ -135,6 +136,20 @@ def block_factors(problem, mode, keep, scale=None, on_block=None) -> dict | None
         factors = np.sqrt(1.0 + len(z2) * (e - 1.0))  # sigma^2 + tau^2, tau^2 = K (E - 1) sigma^2
     return {"factors": factors, "statistic": stat, "dof": dof, "p_value": p,
             "blocks": len(z2), "excess": np.where(np.isfinite(excess), excess, 1.0)}
+
+
+def _remembered(gn):
+    """``gn`` that evaluates each point once (keyed by its bytes): the curvature at a refit's
+    end is the one its last Levenberg-Marquardt step computed (a rollout with tangents)."""
+    seen: dict = {}
+
+    def f(x):
+        key = np.asarray(x, dtype=float).tobytes()
+        if key not in seen:
+            seen[key] = gn(x)
+        return seen[key]
+
+    return f
 
 
 __all__ = ["BLOCKS", "block_factors", "full_mode", "time_edges", "without_block"]

@@ -273,7 +273,8 @@ def robust_covariance(draws: np.ndarray, streams: list[tuple[np.ndarray, np.ndar
 
 
 # -- the run's draws ------------------------------------------------------------------------
-def add_robust(idata, model, problem, flat: np.ndarray, constrained: dict, shown: str = "robust"):
+def add_robust(idata, model, problem, flat: np.ndarray, constrained: dict, shown: str = "robust",
+               on_block=None):
     """Add the group ``posterior_robust`` (the widened draws) to ``idata`` and name the shown
     intervals in ``idata.attrs["intervals"]``. ``flat`` (chains, samples, dim): the
     unconstrained draws; ``constrained``: the posterior pass's sites, (chains * samples, ...)
@@ -301,7 +302,7 @@ def add_robust(idata, model, problem, flat: np.ndarray, constrained: dict, shown
         return idata
     Xr = X.copy()
     Xr[:, keep] = m[keep] + (X[:, keep] - m[keep]) @ A.T
-    block = _block_check(problem, X, keep, Xr, m) if shown == "robust" else None
+    block = _block_check(problem, X, keep, Xr, m, on_block) if shown == "robust" else None
     widest = Xr[:, keep].std(axis=0) / X[:, keep].std(axis=0)
     values = _constrain(model, problem)(jnp.asarray(Xr))
     post = {u: np.asarray(values[u]).reshape(chains, samples, *np.shape(values[u])[1:])
@@ -321,13 +322,13 @@ def add_robust(idata, model, problem, flat: np.ndarray, constrained: dict, shown
     return idata
 
 
-def _block_check(problem, X, keep, Xr, m) -> dict | None:
+def _block_check(problem, X, keep, Xr, m, on_block=None) -> dict | None:
     """``block_check``: where its refits on time blocks scatter more than the sandwich's
     intervals explain, widen the draws ``Xr`` (in place) per coordinate by the measured
     excess over them (no double count). Its figures, or a note saying why there are none."""
     have = Xr[:, keep].std(axis=0) / X[:, keep].std(axis=0)
     try:
-        found = block_factors(problem, full_mode(problem, X), keep, scale=have)
+        found = block_factors(problem, full_mode(problem, X), keep, scale=have, on_block=on_block)
     except (np.linalg.LinAlgError, ValueError, FloatingPointError) as err:  # a check only
         return {"note": f"not possible: {type(err).__name__}: {err}"}
     if found is None:

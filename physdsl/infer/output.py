@@ -6,6 +6,8 @@ import hashlib
 import io as _io
 import json
 import platform
+import time
+from contextlib import contextmanager
 from dataclasses import asdict
 from pathlib import Path
 
@@ -21,28 +23,32 @@ from ..errors import UsageError
 from ..pooled import component_labels, experiment_dims
 from ..version import __version__
 from .base import cached
+from .block_check import BLOCKS
+from .blocks import Pacer
 from .intervals import add_robust, shown_posterior
 from . import posterior_data
 
 
 PLAIN = "plain"  # Settings.intervals of a fit that shows the model's intervals and makes no
 # robust ones (their residual models cost seconds per fit, the block check its refits)
-PASS_CHUNK = 64  # draws per call of the posterior pass: one compile for any number of
-# draws, memory bounded (a rollout's states per draw), and a progress bar that moves
+PASS_CHUNK = 64  # draws per call of the vmapped posterior pass (one compile for any number
+# of draws, memory bounded: a rollout's states per draw), and per progress step of the pass
 
 
 def build_inference_data(model, problem, flat: np.ndarray, stats: dict, settings,
-                         on_chunk=None):
+                         on_chunk=None, stages=None):
     """InferenceData with posterior (unknowns), predictive, observed data and pointwise log-lik.
 
-    One jitted pass per draw: numpyro's postprocessing runs the program once (constrained
-    values and the ``pred:`` deterministic sites), and the log-likelihood is read off those
-    predictions, so the physics is rolled out once per draw, ``PASS_CHUNK`` draws a call
-    (vmapped; ``on_chunk(m)`` after each call, a progress bar).
+    One rollout per draw (``posterior_pass``), the log-likelihood read off its predictions;
+    ``on_chunk(m)`` after each ``m`` draws (a progress bar). Then the robust intervals
+    (``intervals.add_robust``). ``stages`` (``progress.Stages``): each part under a stage of
+    its own, "predictions" (a bar over the draws) and "intervals" (a bar over the block
+    check's refits), instead of ``on_chunk``.
     """
     chains, samples, _ = flat.shape
-    constrained, loglik = posterior_pass(model, problem, flat.reshape(chains * samples, -1),
-                                         on_chunk)
+    with _stage(stages, "predictions", chains * samples) as st:
+        constrained, loglik = posterior_pass(model, problem, flat.reshape(chains * samples, -1),
+                                             st.advance if st is not None else on_chunk)
     unknowns = set(model.unknown_names)
     shaped = lambda v: np.asarray(v).reshape(chains, samples, *v.shape[1:])  # noqa: E731
     posterior = {k: shaped(v) for k, v in constrained.items() if k in unknowns}
@@ -59,12 +65,64 @@ def build_inference_data(model, problem, flat: np.ndarray, stats: dict, settings
     if shown == PLAIN:  # a fit only compared with others (``fit.quick_fit``): no sandwich
         idata.attrs["intervals"] = "model"
         return idata
-    return add_robust(idata, model, problem, flat, constrained, shown)  # + posterior_robust
+    # a bar over the block check's refits where it runs (robust intervals, least squares)
+    total = BLOCKS if shown == "robust" and problem.gauss_newton is not None else None
+    with _stage(stages, "intervals", total) as st:
+        return add_robust(idata, model, problem, flat, constrained, shown,  # + posterior_robust
+                          on_block=None if st is None else st.advance)
+
+
+@contextmanager
+def _stage(stages, name: str, total):
+    """``stages.stage(name, total)``, or None without ``stages``."""
+    if stages is None:
+        yield None
+        return
+    with stages.stage(name, total=total) as st:
+        yield st
 
 
 def posterior_pass(model, problem, flat: np.ndarray, on_chunk=None) -> tuple[dict, dict]:
-    """(constrained sites, pointwise log-likelihood by observable) of each row of ``flat``
-    (draws, dim), in calls of ``PASS_CHUNK`` draws (the last padded), one compile."""
+    """(constrained sites: the unknowns and the ``pred:`` predictions; pointwise
+    log-likelihood by observable) of each row of ``flat`` (draws, dim); ``on_chunk(m)`` after
+    each call of ``m`` draws (a progress bar).
+
+    Where the Problem has ``draw`` (least squares), draws go one by one through it: the fit's
+    own value function (``problem.draw_function``), whose rollout is the scene's one
+    compiled rollout (``model.simulate``, which the fit's quality calls too), so the pass
+    traces and compiles nothing new and costs one rollout a draw, in calls of about
+    ``PASS_CALL_S`` (``blocks.Pacer``). Where the draws left would take over ``VMAP_AFTER_S``
+    that way (many long rollouts: a vmapped rollout costs 2-3x less a draw), they go
+    ``PASS_CHUNK`` a call through a vmapped program instead, which pays one compile of its
+    own (the last call padded). Problems with no ``draw`` always take that one."""
+    n = flat.shape[0]
+    parts, done = [], 0
+    pacer = Pacer(PASS_CALL_S)
+    while problem.draw is not None and done < n:
+        if pacer.per is not None and pacer.per * (n - done) > VMAP_AFTER_S:
+            break
+        m = pacer.next(n - done, PASS_CHUNK)
+        t0 = time.process_time()  # (CPU: a shared machine's load does not decide)
+        outs = jax.device_get([problem.draw(jnp.asarray(x), problem.data)[:2]  # dispatched,
+                               for x in flat[done:done + m]])  # then one wait: calls overlap
+        pacer.record(m, time.process_time() - t0)
+        parts.append(_sites(model, jax.tree_util.tree_map(lambda *a: np.stack(a), *outs)))
+        done += m
+        if on_chunk is not None:
+            on_chunk(m)
+    if done < n:
+        parts.append(_vmapped_pass(model, problem, flat[done:], on_chunk))
+    return jax.tree_util.tree_map(lambda *a: np.concatenate(a), *parts)
+
+
+PASS_CALL_S = 1.0  # CPU seconds per call of the one-by-one pass (a progress step)
+VMAP_AFTER_S = 80.0  # CPU seconds of one-by-one draws left beyond which the rest are
+# vmapped: a vmapped draw costs 1/2-1/3 of one by one (chain_hit 14 vs 30 ms, the double
+# pendulum 45 vs 155 ms), so its compile (39 s on chain_hit) pays off beyond about twice that
+
+
+def _vmapped_pass(model, problem, flat: np.ndarray, on_chunk=None) -> tuple[dict, dict]:
+    """``posterior_pass`` by a vmapped program, ``PASS_CHUNK`` draws a call (the last padded)."""
     def one(x, data):
         c = problem.to_constrained(x, data)
         values = {k: c[k] for k in model.unknown_names}
@@ -81,10 +139,17 @@ def posterior_pass(model, problem, flat: np.ndarray, on_chunk=None) -> tuple[dic
         if m < PASS_CHUNK:
             x = np.concatenate([x, np.repeat(x[-1:], PASS_CHUNK - m, axis=0)])
         out = fn(jnp.asarray(x), problem.data)
-        parts.append(jax.tree_util.tree_map(lambda a, m=m: np.asarray(a)[:m], out))
+        parts.append(_sites(model, jax.tree_util.tree_map(lambda a, m=m: np.asarray(a)[:m], out)))
         if on_chunk is not None:
             on_chunk(m)
     return jax.tree_util.tree_map(lambda *a: np.concatenate(a), *parts)
+
+
+def _sites(model, out):
+    """(sites, log-likelihood) with the sites cut to the unknowns and the predictions."""
+    sites, loglik = out
+    keep = set(model.unknown_names) | {PRED_PREFIX + o.obs.name for o in model.observed}
+    return {k: v for k, v in sites.items() if k in keep}, loglik
 
 
 def _dims(model, posterior):

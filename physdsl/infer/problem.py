@@ -17,6 +17,7 @@ import numpyro
 from jax.flatten_util import ravel_pytree
 from numpyro.infer.util import constrain_fn, potential_energy, unconstrain_fn
 
+from ..compile import PRED_PREFIX
 from ..errors import InferenceError
 from ..physics.forward import FORWARD_MODE_MAX
 from .base import Problem, cached, gauss_newton, safe_logdensity, value_and_grad_fn
@@ -39,9 +40,11 @@ def _build_problem(model) -> Problem:
                              "trajectory inference yet",
                              hint="give them a value, or fit shape from images with "
                                   "physdsl.render.inverse (Metropolis-within-Gibbs)")
-    logdensity, to_constrained, dim, gn, ph = model.cached("problem", lambda: _functions(model))
+    logdensity, to_constrained, dim, gn, ph, draw = model.cached("problem",
+                                                                 lambda: _functions(model))
     data = jax.device_put(model.data)  # (jnp.asarray would compile a conversion per array)
-    return Problem(logdensity, to_constrained, dim, model, data, model.compiled.cache, gn, ph)
+    return Problem(logdensity, to_constrained, dim, model, data, model.compiled.cache, gn, ph,
+                   draw)
 
 
 def _functions(model):
@@ -56,9 +59,36 @@ def _functions(model):
 
     with_residuals, neg_log_prior = least_squares_parts(model, unravel)
     if not (model.least_squares and dim <= FORWARD_MODE_MAX):
-        return safe_logdensity(logdensity), to_constrained, dim, None, None
+        return safe_logdensity(logdensity), to_constrained, dim, None, None, None
     return (safe_logdensity(logdensity), to_constrained, dim, gauss_newton(with_residuals),
-            jax.hessian(neg_log_prior))
+            jax.hessian(neg_log_prior), draw_function(model, unravel, neg_log_prior))
+
+
+def draw_function(model, unravel, neg_log_prior):
+    """(x, data) -> (sites: the unknowns' constrained values and the ``pred:`` predictions;
+    pointwise log-likelihood by observable; log density) of one flat unconstrained draw.
+
+    Three compiled parts: constraining (no physics), the scene's rollout itself
+    (``model.simulate``: the Simulator's one compiled rollout, which the fit's quality and
+    ``check`` call too) and the predictions and likelihood read off it (no physics). The log
+    density is the Gauss-Newton function's (``least_squares_parts``; -inf where not finite),
+    so the fit's value function is this one (``base.value_fn``) and the posterior pass
+    (``output.posterior_pass``) reuses its compiled rollout instead of tracing another."""
+    constrain = jax.jit(lambda x: constrain_fn(model.prior_values, (), {}, unravel(x)))
+
+    @jax.jit
+    def read(x, values, rollout, data):
+        preds = model.predict(values, rollout, data)
+        ll = model.pointwise_log_likelihood(values, preds, data)
+        lp = sum((jnp.sum(v) for v in ll.values()), -neg_log_prior(x))
+        sites = {**values, **{PRED_PREFIX + k: v for k, v in preds.items()}}
+        return sites, ll, jnp.where(jnp.isfinite(lp), lp, -jnp.inf)
+
+    def draw(x, data):
+        values = constrain(x)
+        return read(x, values, model.simulate(values), data)
+
+    return draw
 
 
 def least_squares_parts(model, unravel):

@@ -128,8 +128,7 @@ def _run(model, backend, settings, outdir, resume, force, progress, positions, q
 
     flat = np.concatenate(ckpt["draws"], axis=1)  # (chains, samples, dim)
     stats = {k: np.concatenate([s[k] for s in ckpt["stats"]], axis=1) for k in ckpt["stats"][0]}
-    with stages.stage("predictions", total=flat.shape[0] * flat.shape[1]) as st:
-        idata = build_inference_data(model, problem, flat, stats, settings, on_chunk=st.advance)
+    idata = build_inference_data(model, problem, flat, stats, settings, stages=stages)
     if basins:
         idata.attrs["basins"] = json.dumps(basins)
     if not np.all(np.isfinite(flat)):
@@ -189,8 +188,7 @@ def _keep_mode(out, model, problem, err, backend, settings, stages, quality):
     draw, summary.csv, run.json marking ``laplace: failed`` with the flat directions) and say
     so in ``err`` (``err.idata``: the mode's InferenceData)."""
     flat = np.asarray(err.mode, dtype=float)[None, None, :]
-    with stages.stage("predictions", total=1) as st:
-        idata = build_inference_data(model, problem, flat, {}, settings, on_chunk=st.advance)
+    idata = build_inference_data(model, problem, flat, {}, settings, stages=stages)
     idata.attrs["laplace"] = "failed"
     judged = _fit_quality(quality, model, idata, stages)
     directions = [{"curvature": c, "components": [{"name": n, "weight": w} for n, w in comps]}

@@ -1,6 +1,6 @@
 """Fit quality, printed and saved by every `infer`: the check's own numbers (residual RMS in
 noise units overall and per observable, worst window, verdict), and a warning in words where
-the fit is far from the data; the posterior pass runs in chunks with the same results."""
+the fit is far from the data; the posterior pass gives the same results one draw at a time or vmapped."""
 from __future__ import annotations
 
 import physdsl
@@ -77,21 +77,39 @@ def test_a_start_far_from_the_first_samples_is_flagged(projectile_model, good):
     assert far["fitted"].startswith("(") and far["fitted"].endswith(" m")
 
 
-def test_chunked_posterior_pass_equals_one_pass(projectile_model, good, monkeypatch):
+def test_posterior_pass_one_by_one_equals_vmapped(projectile_model, good, monkeypatch):
+    """The pass through the fit's own value function (one draw a call, the scene's one
+    compiled rollout) gives the vmapped pass's numbers, also where it hands the draws left to
+    the vmapped pass (long rollouts: ``VMAP_AFTER_S``) in calls of ``PASS_CHUNK``; and that
+    value function is the log density."""
+    import jax
     from physdsl.infer import output
+    from physdsl.infer.base import value_fn
     from physdsl.infer.problem import model_problem
 
     problem = model_problem(projectile_model)
     rng = np.random.default_rng(0)
     centre = np.array([3.2, 0.4, 4.3, np.log(0.3)])  # velocity, log drag (the flat order)
     flat = centre + rng.normal(0.0, 0.05, (20, problem.dim))
-    whole = output.posterior_pass(projectile_model, problem, flat)  # one padded chunk of 64
-    monkeypatch.setattr(output, "PASS_CHUNK", 7)  # three calls, the last padded
     seen = []
-    parts = output.posterior_pass(projectile_model, problem, flat, on_chunk=seen.append)
-    assert seen == [7, 7, 6]
-    for a, b in zip(*(__import__("jax").tree_util.tree_leaves(t) for t in (whole, parts))):
-        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-14)
+    one_by_one = output.posterior_pass(projectile_model, problem, flat, on_chunk=seen.append)
+    assert sum(seen) == 20 and seen[:2] == [1, 1]  # the first two calls time a draw
+    vmapped = output.posterior_pass(projectile_model, problem._replace(draw=None), flat)
+    monkeypatch.setattr(output, "VMAP_AFTER_S", 0.0)  # every rollout counts as long
+    monkeypatch.setattr(output, "PASS_CHUNK", 7)
+    mixed_seen = []
+    mixed = output.posterior_pass(projectile_model, problem, flat, on_chunk=mixed_seen.append)
+    assert mixed_seen == [1, 1, 7, 7, 4]
+    assert set(one_by_one[0]) == set(vmapped[0]) == {"ball.velocity", "linear_drag@ball.coefficient",
+                                                      "pred:ball.position"}
+    leaves = [jax.tree_util.tree_leaves(t) for t in (one_by_one, vmapped, mixed)]
+    for a, b, c in zip(*leaves):
+        np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(c, b, rtol=1e-10, atol=1e-12)
+    value = value_fn(problem)
+    for x in flat[:3]:
+        np.testing.assert_allclose(float(value(x)), float(problem.logdensity(x, problem.data)),
+                                   rtol=1e-12)
 
 
 def test_infer_prints_and_saves_the_fit_quality(projectile_scene, cli, tmp_path):
@@ -100,7 +118,8 @@ def test_infer_prints_and_saves_the_fit_quality(projectile_scene, cli, tmp_path)
                             "--chains", "2", "--warmup", "100", "--samples", "20")
     assert code == 0, err
     assert "fit: residual RMS" in stdout and "check: " in stdout
-    for stage in ("compile", "optimise", "laplace", "sampling", "predictions", "fit quality"):
+    for stage in ("compile", "optimise", "laplace", "sampling", "predictions", "intervals",
+                  "fit quality"):
         assert f"{stage}: done in" in err  # progress of every stage on stderr
     q = json.loads((out / "run.json").read_text())["fit_quality"]
     assert 0.5 < q["rms_sigma"] < 1.5 and q["verdict"]

@@ -84,3 +84,4 @@ def test_infer_advances_warmup_per_block(projectile_model, monkeypatch):
     assert sum(advances["warmup"]) == 250 and max(advances["warmup"]) <= 100
     assert sum(advances["sampling"]) == 150 and max(advances["sampling"]) <= 100
     assert sum(advances["predictions"]) == 2 * 150
+    assert advances["intervals"] == [1] * 8  # the block check's refits, one by one
