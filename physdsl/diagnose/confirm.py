@@ -166,6 +166,7 @@ def apply(base: Baseline, r: Ranked, out: dict, draft: Draft, new=None) -> None:
                  "rms_before", "rms_after", "log_evidence", "consistent_after", "fitted",
                  "confirmed"):
         setattr(r, name, out[name])
+    r.elpd_reliable = bool(out.get("elpd_reliable", True))
     if not out.get("elpd_reliable", True):  # its draws cannot say: the evidence decides
         r.confirmed = refit_task.confirmed(out, base.log_z())
         r.note = "; ".join(filter(None, [r.note, "PSIS-LOO unreliable for this refit (Pareto k > 0.7 "

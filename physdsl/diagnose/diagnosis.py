@@ -52,6 +52,7 @@ class Ranked:
     log_evidence: float | None = None  # Laplace log marginal likelihood of the refit (None: n/a)
     model_prob: float | None = None  # posterior probability among the confirmed (equal odds)
     consistent_after: bool | None = None  # the refit's check finds no systematic residual
+    elpd_reliable: bool = True  # the refit's PSIS-LOO is evidence (``loo.unreliable``)
     note: str = ""
     # pointwise differences to the fit without the effect (LOO per measurement time; log
     # predictive density per time after the cut-off): the standard errors of ties

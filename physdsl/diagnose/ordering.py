@@ -88,6 +88,8 @@ def order_by_evidence(confirmed: list[Ranked]) -> list[Ranked]:
     the tied, strong Laplace evidence (a Bayes factor above 10 over the ΔLFO leader, see
     ``evidence.STRONG``) puts a candidate first: it counts what a strength costs its prior.
     """
+    if any(not r.elpd_reliable for r in confirmed):
+        return by_log_evidence(confirmed)
     best = sorted(confirmed, key=lambda r: -r.delta_elpd)
     if not best:
         return best
@@ -103,6 +105,22 @@ def order_by_evidence(confirmed: list[Ranked]) -> list[Ranked]:
     return tied + rest
 
 
+def by_log_evidence(confirmed: list[Ranked]) -> list[Ranked]:
+    """Confirmed candidates best first by Laplace log evidence (n/a last, then by ΔLFO): where
+    some refit's PSIS-LOO is unreliable (``loo.unreliable``: its draws are wider than its
+    posterior) ΔELPD does not compare the candidates; on the double pendulum the two refits'
+    -3864 and -3833 would have put friction on both hinges before friction on the elbow alone,
+    whose evidence was 2.8 higher (P 0.94)."""
+    return sorted(confirmed, key=lambda r: (r.log_evidence is None, -(r.log_evidence or 0.0),
+                                            -(r.delta_lfo or 0.0)))
+
+
+def _evidence_tied(a: Ranked, b: Ranked) -> bool:
+    """Neither Laplace evidence is strong against the other (both known)."""
+    return (a.log_evidence is not None and b.log_evidence is not None
+            and abs(a.log_evidence - b.log_evidence) <= STRONG)
+
+
 def _elpd_tied(a: Ranked, b: Ranked) -> bool:
     """Whether two confirmed refits predict alike by PSIS-LOO (ΔELPD within ``tie_margin``)."""
     if a.delta_elpd is None or b.delta_elpd is None:
@@ -114,7 +132,10 @@ def evidence_ties(winner: Ranked, confirmed: list[Ranked]) -> list[Ranked]:
     """Confirmed candidates the evidence cannot separate from the winner: ΔELPD and ΔLFO both
     within ``tie_margin`` (e.g. linear and quadratic drag on a throw whose speed barely
     varies). They share the winner's rank: the winner is named (``refine`` adds one effect),
-    but the table does not claim an order the data do not give."""
+    but the table does not claim an order the data do not give. Where a refit's PSIS-LOO is
+    unreliable, the Laplace evidence within a Bayes factor of 10."""
+    if any(not r.elpd_reliable for r in confirmed):
+        return [r for r in confirmed if r is not winner and _evidence_tied(winner, r)]
     return [r for r in confirmed if r is not winner
             and winner.delta_elpd - r.delta_elpd < tie_margin(winner.elpd_points, r.elpd_points)
             and abs((winner.delta_lfo or 0.0) - (r.delta_lfo or 0.0))

@@ -271,3 +271,23 @@ def test_a_confirmed_group_with_a_strength_per_joint_brings_its_shared_strength_
     assert shared_siblings([row("joint_damping", "h1&h2&h3&h4", confirmed=False), shared]) == []
     shared.confirmed = True  # refitted already (ranked before the refits stopped)
     assert shared_siblings([each, shared]) == []
+
+
+def test_refits_with_unreliable_psis_loo_are_ordered_by_their_evidence():
+    """Round 1 of the double pendulum: friction on the elbow alone (log Z +2.8 over friction on
+    both hinges, P 0.94) must lead, although its unreliable ΔELPD (-3864) is below the other's
+    (-3833); the two are not tied (a Bayes factor above 10)."""
+    from physdsl.diagnose.diagnosis import Ranked
+    from physdsl.diagnose.ordering import evidence_ties, order_by_evidence
+
+    def row(target, elpd, lfo, z):
+        return Ranked(1, "effect", "joint_friction", target, 60.0, 1e-14, 1, -32.0, 7.0, 0.001,
+                      confirmed=True, delta_elpd=elpd, delta_lfo=lfo, log_evidence=z,
+                      elpd_points=np.full(603, elpd / 603), lfo_points=np.full(181, lfo / 181),
+                      elpd_reliable=False, candidate=Candidate("effect", "joint_friction", (target,)))
+
+    both, elbow = row("shoulder+elbow", -3832.8, 6.2, 4444.4), row("elbow", -3864.2, 8.9, 4447.2)
+    assert order_by_evidence([both, elbow]) == [elbow, both]
+    assert evidence_ties(elbow, [elbow, both]) == []
+    both.log_evidence = 4446.0  # within a Bayes factor of 10: tied
+    assert evidence_ties(elbow, [elbow, both]) == [both]
