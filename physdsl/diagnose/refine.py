@@ -83,8 +83,9 @@ def refine(scene_path, outdir, *, max_rounds: int = 3, backend: str = "map", cha
     """Fit, check, re-examine, diagnose and extend the scene until no addition, swap or drop
     improves the evidence; returns the rounds. ``revise``: effects of the user's scene
     (``effect@target``) to re-examine like those the loop adds. ``beyond``: called where no
-    library effect explains the misfit (learn a force, distil a law; its law is added to the
-    next round only with ``allow_learned``)."""
+    library effect explains the misfit, or beside a winner that only half explains it
+    (``half_explained``): learn a force, distil a law; the law is added to the next round only
+    with ``allow_learned`` and where it beats the library on the evidence."""
     scene_path = Path(scene_path)
     user = load(scene_path)  # the user's scene checked before anything is written
     if revise:
