@@ -80,6 +80,7 @@ def run_case(name: str, folder: Path, echo, source: str = "physdsl", library: bo
                              None if res.law is None else res.law["log_z"]),
            f"law.{name}": None if res.law is None else res.law["coefficients"],
            f"truth.{name}": case.law,
+           f"library_wins.{name}": int(res.library_wins),  # the law does not beat the library
            f"verdict.{name}": res.verdict,
            f"wall_s.{name}": round(time.time() - t0, 1),
            f"cpu_s.{name}": round(time.process_time() - c0, 1)}
