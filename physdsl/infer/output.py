@@ -65,8 +65,10 @@ def build_inference_data(model, problem, flat: np.ndarray, stats: dict, settings
     if shown == PLAIN:  # a fit only compared with others (``fit.quick_fit``): no sandwich
         idata.attrs["intervals"] = "model"
         return idata
-    # a bar over the block check's refits where it runs (robust intervals, least squares)
-    total = BLOCKS if shown == "robust" and problem.gauss_newton is not None else None
+    # a bar over the block check's refits where it runs (robust intervals of draws, not of
+    # a kept mode alone; least squares)
+    check = shown == "robust" and problem.gauss_newton is not None and chains * samples > 1
+    total = BLOCKS if check else None
     with _stage(stages, "intervals", total) as st:
         return add_robust(idata, model, problem, flat, constrained, shown,  # + posterior_robust
                           on_block=None if st is None else st.advance)
