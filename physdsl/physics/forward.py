@@ -319,6 +319,28 @@ def _scan_sizes(params) -> tuple[int, int]:
     return len(consts), len(carry)
 
 
+def _tangent_carries(body, nc: int, nk: int, dc, dx, dk) -> list[int]:
+    """The carries of a scan ``body`` (a jaxpr: constants, carries, scanned inputs) that a tangent
+    reaches: those with one at the start (``dk``) and, to a fixed point, those the body computes
+    from a constant (``dc``), scanned input (``dx``) or carry with one. The others stay exactly
+    zero and are not carried (as JAX's own jvp of a scan finds, here by reading the jaxpr's
+    dependencies rather than tracing the body again): a ball's velocity does not depend on its
+    start height."""
+    ins = body.invars
+    seeds = {ins[k] for k in dc} | {ins[nc + nk + k] for k in dx}
+    carried = set(dk)
+    while True:
+        reached = set(seeds) | {ins[nc + k] for k in carried}
+        for eqn in body.eqns:  # coarse: every output of an equation that reads a reached input
+            if any(isinstance(v, core.Var) and v in reached for v in eqn.invars):
+                reached.update(v for v in eqn.outvars if not isinstance(v, core.DropVar))
+        more = {k for k, v in enumerate(body.outvars[:nk])
+                if isinstance(v, core.Var) and v in reached} - carried
+        if not more:
+            return sorted(carried)
+        carried |= more
+
+
 def _scan(eqn, env, tenv, P) -> None:
     """A scan with its tangents: a new scan carrying every float carry's P tangents, whose body
     is the vmapped jvp of the old one."""
@@ -329,13 +351,16 @@ def _scan(eqn, env, tenv, P) -> None:
     tans = [None if isinstance(v, core.Literal) else tenv.get(v) for v in eqn.invars]
     consts, init, xs = ins[:nc], ins[nc:nc + nk], ins[nc + nk:]
     dc = [k for k in range(nc) if tans[k] is not None]
-    fk = [k for k in range(nk) if _is_float(init[k])]
     dx = [k for k in range(len(xs)) if tans[nc + nk + k] is not None]
+    # (pruned of a step's unread loads, e.g. torques)
+    pruned = prune(inline_calls(p["jaxpr"]))[0]
+    fk = _tangent_carries(pruned.jaxpr, nc, nk, dc, dx,
+                          [k for k in range(nk) if tans[nc + k] is not None])
+    fk = [k for k in fk if _is_float(init[k])]
     dinit = [tans[nc + k] if tans[nc + k] is not None
              else jnp.zeros((P,) + jnp.shape(init[k]), jnp.result_type(init[k])) for k in fk]
     dxs = [jnp.moveaxis(tans[nc + nk + k], 0, 1) for k in dx]  # (T, P, ...)
-    # (pruned of a step's unread loads, e.g. torques)
-    body = core.jaxpr_as_fun(prune(inline_calls(p["jaxpr"]))[0])
+    body = core.jaxpr_as_fun(pruned)
 
     def step(carry, x):
         (c, dcarry), (xv, dxv) = carry, x

@@ -19,7 +19,7 @@ from jax.scipy.linalg import cho_factor, cho_solve
 
 from .kinematics import Kin
 from .spatial import (cross_force, mm, mv, normalize, quat_axis_angle, quat_mul,
-                      quat_to_mat, spatial_inertia, unit_quat_to_mat)
+                      spatial_inertia, unit_quat_to_mat)
 from .structure import PhysicsModel
 
 # above this many dofs the articulated-body algorithm (``dynamics.forward_dynamics``): the
@@ -67,56 +67,80 @@ def _mask(model: PhysicsModel, *kinds):
     return np.array([j.kind in kinds for j in model.joints])
 
 
+def _kinds(model: PhysicsModel) -> frozenset:
+    """The joint kinds present: only their formulas are traced (a hinge chain pays for no ball or
+    free joint's quaternion algebra: fewer kernels per step, a smaller program to compile)."""
+    return frozenset(j.kind for j in model.joints)
+
+
 def _joint_motions(model: PhysicsModel, prm: dict, q):
     """Each body's joint motion J_i(q_i) (a free joint: its whole motion) as (quaternion (B, 4),
-    translation (B, 3))."""
+    translation (B, 3)); also the ball and free joints' own quaternions and a free joint's
+    position (identity and zero where there is none)."""
     nq = model.nq
+    kinds = _kinds(model)
     qx = jnp.concatenate([q, jnp.zeros(1, q.dtype)])
-    one = np.array([j.qadr if j.kind in ("hinge", "slider") else nq for j in model.joints])
-    quat_at = {"ball": 0, "free": 3}
-    q4 = np.array([[j.qadr + quat_at[j.kind] + k if j.kind in quat_at else nq for k in range(4)]
-                   for j in model.joints])
-    x3 = np.array([[j.qadr + k if j.kind == "free" else nq for k in range(3)]
-                   for j in model.joints])
     hinge, slider = _mask(model, "hinge")[:, None], _mask(model, "slider")[:, None]
     ball, free = _mask(model, "ball")[:, None], _mask(model, "free")[:, None]
     a, p, ref_q = prm["axis"], prm["anchor"], prm["ref_quat"]
-    th = qx[one]
-    ident = jnp.zeros_like(ref_q).at[:, 0].set(1.0)
-    qb = normalize(jnp.where(ball | free, qx[q4], ident))
-    qJ = jnp.where(hinge, quat_axis_angle(a, th), jnp.where(ball, qb, ident))
-    qJ = jnp.where(free, quat_mul(qb, ref_q * jnp.array([1.0, -1.0, -1.0, -1.0], q.dtype)), qJ)
-    RJ = quat_to_mat(qJ)
-    tJ = jnp.where(hinge | ball, p - mv(RJ, p), 0.0) + jnp.where(slider, a * th[:, None], 0.0)
-    tJ = jnp.where(free, qx[x3] - mv(RJ, prm["ref_pos"]), tJ)
-    return qJ, tJ, qb, qx[x3]
+    ident = jnp.broadcast_to(jnp.array([1.0, 0.0, 0.0, 0.0], ref_q.dtype), ref_q.shape)
+    x = jnp.zeros_like(prm["ref_pos"])
+    qb = qJ = ident
+    if kinds & {"hinge", "slider"}:
+        one = np.array([j.qadr if j.kind in ("hinge", "slider") else nq for j in model.joints])
+        th = qx[one]
+    if kinds & {"ball", "free"}:
+        quat_at = {"ball": 0, "free": 3}
+        q4 = np.array([[j.qadr + quat_at[j.kind] + k if j.kind in quat_at else nq
+                        for k in range(4)] for j in model.joints])
+        qb = normalize(jnp.where(ball | free, qx[q4], ident))
+        qJ = jnp.where(ball, qb, qJ)
+    if "hinge" in kinds:
+        qJ = jnp.where(hinge, quat_axis_angle(a, th), qJ)
+    if "free" in kinds:
+        x3 = np.array([[j.qadr + k if j.kind == "free" else nq for k in range(3)]
+                       for j in model.joints])
+        x = qx[x3]
+        qJ = jnp.where(free, quat_mul(qb, ref_q * jnp.array([1.0, -1.0, -1.0, -1.0], q.dtype)), qJ)
+    RJ = unit_quat_to_mat(qJ)  # unit: an axis-angle of a unit axis, normalised, or products
+    tJ = jnp.zeros_like(x)
+    if kinds & {"hinge", "ball"}:
+        tJ = jnp.where(hinge | ball, p - mv(RJ, p), 0.0)
+    if "slider" in kinds:
+        tJ = tJ + jnp.where(slider, a * th[:, None], 0.0)
+    if "free" in kinds:
+        tJ = jnp.where(free, x - mv(RJ, prm["ref_pos"]), tJ)
+    return qJ, tJ, qb, x
 
 
 def _subspaces(model: PhysicsModel, prm: dict, qD, tD, qb, x):
     """Motion subspaces (B, 6, K) in the world at the origin, and which columns turn with the
-    body itself (a free joint's rotation) rather than with the parent."""
+    body itself (a free joint's rotation) rather than with the parent; only the kinds present
+    are traced (``_kinds``)."""
     K = max([j.nv for j in model.joints] + [1])
-    R = quat_to_mat(qD)
+    kinds = _kinds(model)
+    R = unit_quat_to_mat(qD)  # products of unit quaternions
     a_w, p_w = mv(R, prm["axis"]), mv(R, prm["anchor"]) + tD  # fixed by the joint's own motion
-    z3 = jnp.zeros_like(a_w)
-    hinge = jnp.concatenate([a_w, jnp.cross(p_w, a_w)], -1)
-    slider = jnp.concatenate([z3, a_w], -1)
-    E = R  # a ball joint's columns: the body's (D's) axes
-    ball = jnp.concatenate([E, jnp.cross(p_w[:, :, None], E, axis=1)], 1)  # (B, 6, 3)
-    Rb = quat_to_mat(qb)
-    eye = jnp.broadcast_to(jnp.eye(3, dtype=R.dtype), R.shape)
-    free_t = jnp.concatenate([jnp.zeros_like(eye), eye], 1)
-    free_r = jnp.concatenate([Rb, jnp.cross(x[:, :, None], Rb, axis=1)], 1)
-    cols = []
-    for k in range(K):
-        c = jnp.where(_mask(model, "hinge")[:, None], hinge, 0.0) if k == 0 else 0.0
-        c = c + (jnp.where(_mask(model, "slider")[:, None], slider, 0.0) if k == 0 else 0.0)
-        if k < 3:
-            c = c + jnp.where(_mask(model, "ball")[:, None], ball[:, :, k], 0.0)
-        if K == 6:
+    cols = [jnp.zeros((model.nbody, 6), R.dtype) for _ in range(K)]
+    if "hinge" in kinds:
+        hinge = jnp.concatenate([a_w, jnp.cross(p_w, a_w)], -1)
+        cols[0] = cols[0] + jnp.where(_mask(model, "hinge")[:, None], hinge, 0.0)
+    if "slider" in kinds:
+        slider = jnp.concatenate([jnp.zeros_like(a_w), a_w], -1)
+        cols[0] = cols[0] + jnp.where(_mask(model, "slider")[:, None], slider, 0.0)
+    if "ball" in kinds:
+        E = R  # a ball joint's columns: the body's (D's) axes
+        ball = jnp.concatenate([E, jnp.cross(p_w[:, :, None], E, axis=1)], 1)  # (B, 6, 3)
+        for k in range(3):
+            cols[k] = cols[k] + jnp.where(_mask(model, "ball")[:, None], ball[:, :, k], 0.0)
+    if "free" in kinds:
+        Rb = unit_quat_to_mat(qb)  # normalised above
+        eye = jnp.broadcast_to(jnp.eye(3, dtype=R.dtype), R.shape)
+        free_t = jnp.concatenate([jnp.zeros_like(eye), eye], 1)
+        free_r = jnp.concatenate([Rb, jnp.cross(x[:, :, None], Rb, axis=1)], 1)
+        for k in range(K):
             fc = free_t[:, :, k] if k < 3 else free_r[:, :, k - 3]
-            c = c + jnp.where(_mask(model, "free")[:, None], fc, 0.0)
-        cols.append(jnp.broadcast_to(c, (model.nbody, 6)))
+            cols[k] = cols[k] + jnp.where(_mask(model, "free")[:, None], fc, 0.0)
     own = np.array([[j.kind == "free" and k >= 3 for k in range(K)] for j in model.joints])
     return jnp.stack(cols, -1), own
 
@@ -134,7 +158,7 @@ def tree_kinematics(model: PhysicsModel, prm: dict, q, v) -> Kin:
     qD, tD = X[:, :4], X[:, 4:]
     S, own = _subspaces(model, prm, qD, tD, qb, x)
     quat = normalize(quat_mul(qD, prm["ref_quat"]))
-    pos = mv(quat_to_mat(qD), prm["ref_pos"]) + tD
+    pos = mv(unit_quat_to_mat(qD), prm["ref_pos"]) + tD
     vb = jnp.concatenate([v, jnp.zeros(1, q.dtype)])[vidx]  # (B, K)
     Sv_par = jnp.sum(S * jnp.where(own, 0.0, vb)[:, None, :], -1)
     Sv_own = jnp.sum(S * jnp.where(own, vb, 0.0)[:, None, :], -1)
@@ -144,7 +168,7 @@ def tree_kinematics(model: PhysicsModel, prm: dict, q, v) -> Kin:
     acc0 = _static_mm(A, c)
     S_dof = S[dof_body, :, dof_col]  # (nv, 6)
     jac = A[:, None, dof_body] * S_dof.T[None]  # (B, 6, nv)
-    rot = quat_to_mat(quat)
+    rot = unit_quat_to_mat(quat)  # normalised above
     com = pos + mv(rot, prm["com"])
     I_world = mm(mm(rot, prm["inertia"]), jnp.swapaxes(rot, -1, -2))
     inertia6 = spatial_inertia(prm["mass"], I_world, com)

@@ -89,6 +89,34 @@ def test_jacobian_scan_carries_only_the_columns_that_reach_it():
     assert [e.outvars[1].aval.shape[0] for e in scans] == [2]  # (P, ...) tangent carry
 
 
+def test_jacobian_scan_carries_only_the_carries_a_tangent_reaches():
+    """A falling body's height does not enter its velocity: differentiated in its start height
+    alone, the loop carries the height's tangent and not the velocity's (found from the body's
+    dependencies, to a fixed point: ``u`` reaches ``w`` only in the second trip of the analysis);
+    in the drag coefficient, every carry. Both Jacobians equal JAX's."""
+    from physdsl.physics.forward import jacobian, prune
+
+    def fall(x, z0, k):
+        def body(c, _):
+            z, v, u, w = c
+            return (1.001 * z + 0.01 * v, v - 0.01 * (9.81 + k * v * jnp.abs(v)), u * x, w + u), z
+        c, zs = jax.lax.scan(body, (z0, 0.0, 1.0, 0.0), None, length=50)
+        return jnp.sum(zs) + c[1] + c[3]
+
+    args = [jnp.array(1.01), jnp.array(1.8), jnp.array(0.3)]
+    closed = jax.make_jaxpr(fall)(*args)
+    for col, carried in ((1, 1), (2, 2), (0, 2)):  # z0: z alone; k: z, v; x: u, then w
+        (v,), (g,) = jacobian(prune(closed)[0], args, [col])
+        np.testing.assert_allclose(v, fall(*args), rtol=1e-15)
+        np.testing.assert_allclose(g[0], jax.grad(fall, col)(*args), rtol=1e-12)
+        scans = [e for e in jax.make_jaxpr(
+            lambda *a, col=col: jacobian(prune(closed)[0], list(a), [col]))(*args).eqns
+            if e.primitive.name == "scan"]
+        n_carry = scans[0].params["num_carry"] if "num_carry" in scans[0].params else None
+        if n_carry is not None:  # 4 primal carries, then one (P, ...) tangent per carried one
+            assert n_carry == 4 + carried
+
+
 def test_inline_calls_with_rollouts_puts_the_forward_mode_loop_in_the_callers_jaxpr():
     """A caller that reads the Jacobian of a larger function (the log density) asks for the
     rollout's own equations (``rollouts=True``, no mode flag): the scan then sits in its jaxpr,
