@@ -3,8 +3,15 @@ parameters' error after each refit, ms per MPC step against the plant's 20 ms pe
 goal's cost with and without refits (for ``benchmarks/control.py`` and docs/control.md).
 
 Each seed tilts pole 1 by U(-0.05, 0.05) rad from upright and pole 2 by U(-0.05, 0.05) rad
-from straight, and adds N(0, 1e-4) noise to the plant's observations; success: both poles
-within the goal's 0.1 rad (and the cart within its 50 cm) for the whole run.
+from straight, and adds N(0, 1e-4) noise to the plant's observations. Success (``balanced``):
+neither pole ever more than ``FALL`` from upright, and both poles within the goal's 0.1 rad
+(the cart within its 50 cm) from ``SETTLE`` s to the end (the last 2 s of 3 s); the stricter
+"within 0.1 rad for the whole run" is reported beside it (``_whole_run``): a linear controller
+that knows the plant's true parameters (an LQR at the plant's values, a diagnostic) keeps
+every seed up but meets it in only 5 of 10, so it measures the start's tilt as much as the
+controller. Refits every 10 periods; ``early`` adds refits after those numbers of transitions
+(``mpc.run``), off by default: after each of the first 9, seeds 1 and 2 fell (seed 2 stayed
+up without them).
 
     python examples/control_double_cartpole/trials.py [SEEDS] [DURATION_S]
 """
@@ -22,6 +29,9 @@ from physdsl.control.mujoco_plant import MujocoPlant
 from physdsl.control.refit import PROCESS_NOISE
 
 HERE = Path(__file__).resolve().parent
+SETTLE = 1.0  # s: the goal's tolerances are judged from here on
+FALL = 0.5  # rad: a pole further than this from upright at any time has fallen
+EARLY = ()  # extra refits before the first regular one (see above: they did not help)
 # plant.xml's values: used to score the estimates, never by the controller
 PLANT = {"m_cart": 1.3, "m1": 0.4, "m2": 0.15, "l1": 0.4, "c1": 0.2, "c2": 0.3,
          "I1": 0.008, "I2": 0.0055,
@@ -36,6 +46,13 @@ PLANT = {"m_cart": 1.3, "m1": 0.4, "m2": 0.15, "l1": 0.4, "c1": 0.2, "c2": 0.3,
 def errors(values: dict[str, float]) -> dict[str, float]:
     """Each parameter's relative error against the plant's."""
     return {n: abs(v - PLANT[n]) / PLANT[n] for n, v in values.items()}
+
+
+def balanced(run: mpc.MpcResult) -> bool:
+    """Both poles never beyond ``FALL`` and every hold term within its tolerance from
+    ``SETTLE`` s on."""
+    poles = [e for t, e in zip(run.holds, run.hold_errors()) if t.joint != "cart_slider"]
+    return max(poles) <= FALL and run.held(SETTLE)
 
 
 def prediction_rms(tr, run: mpc.MpcResult, z) -> float:
@@ -65,7 +82,8 @@ def plant_for(seed: int, period: float, noise: float) -> MujocoPlant:
 
 
 def trials(seeds: int = 10, duration: float = 3.0, noise: float = 1e-4, every: int = 10,
-           compare: bool | int = True, first: int = 0) -> dict[str, float]:
+           compare: bool | int = True, first: int = 0,
+           early: tuple[int, ...] = EARLY) -> dict[str, float]:
     """The figures by name; ``compare`` also runs each seed (True) or the first ``compare``
     seeds (an int) without refits (for the cost; the cost with refits is then also given
     over those seeds, ``_compared``); seeds ``first`` on."""
@@ -73,27 +91,31 @@ def trials(seeds: int = 10, duration: float = 3.0, noise: float = 1e-4, every: i
     controller = mpc.Controller(physdsl.compile(HERE / "double_cartpole.phys"), screen=False)
     tr = controller.transition
     held, held_fixed, ms, cpu, cost, curves, ratio = [], [], [], [], {every: [], 0: []}, [], []
+    whole = []
     for seed in range(first, first + seeds):
         for k in ((every, 0) if seed < first + compare else (every,)):
             run = mpc.run(tr.model, plant_for(seed, tr.period, noise), duration, refit_every=k,
-                          controller=controller)
+                          early=early if k else (), controller=controller)
             cost[k].append(run.cost)
             if not k:
-                held_fixed.append(run.held())
+                held_fixed.append(balanced(run))
                 continue
-            held.append(run.held()), ms.extend(run.step_ms[1:]), cpu.extend(run.step_cpu_ms[1:])
+            held.append(balanced(run)), whole.append(run.held())
+            ms.extend(run.step_ms[1:]), cpu.extend(run.step_cpu_ms[1:])
+            steps = [e["step"] for e in run.estimates]  # transitions at each estimate
             curves.append([float(np.median(list(errors(e["values"]).values())))
                            for e in run.estimates])
             ratio.append(prediction_rms(tr, run, run.final_z)
                          / prediction_rms(tr, run, tr.centre[tr.index]))
-            print(f"seed {seed}: held {run.held()}, errors {np.round(run.hold_errors(), 3)}, "
+            print(f"seed {seed}: balanced {held[-1]}, errors {np.round(run.hold_errors(), 3)} "
+                  f"(after {SETTLE:g} s {np.round(run.hold_errors(SETTLE), 3)}), "
                   f"median parameter error {curves[-1][0]:.2f} -> {curves[-1][-1]:.3f}, "
                   f"prediction error ratio {ratio[-1]:.3f}, {np.median(run.step_ms[1:]):.0f} ms "
                   f"({np.median(run.step_cpu_ms[1:]):.0f} ms CPU) per step, cost {run.cost:.1f}",
                   flush=True)
     curve = np.median(np.asarray(curves), axis=0)  # over seeds, per refit
-    steps = [e["step"] for e in run.estimates]
     figures = {"mpc_success_rate.double_cartpole": float(np.mean(held)),
+               "mpc_success_rate_whole_run.double_cartpole": float(np.mean(whole)),
                "param_error_prior.double_cartpole": float(curve[0]),
                "param_error_final.double_cartpole": float(curve[-1]),
                "prediction_error_ratio.double_cartpole": float(np.median(ratio)),

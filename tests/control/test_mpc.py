@@ -14,6 +14,7 @@ import pytest
 import physdsl
 from physdsl.cli import main
 from physdsl.control import mpc, mpc_files, terminal
+from physdsl.control.refit import Memory
 from physdsl.control.transition import build_transition
 from physdsl.errors import ModelError
 
@@ -57,6 +58,34 @@ def test_balance_held_and_mass_refitted(closed_loop):
     sd = r.estimates[-1]["sd"]["pole.mass"]
     assert last < 3 * sd  # the Laplace interval covers the plant's mass
     assert np.all(np.abs(r.forces) <= 10.0 + 1e-9)  # the control prior's bounds
+
+
+def test_refit_schedule():
+    """Regular refits every ``refit_every`` transitions, early ones where asked, none at 0."""
+    due = [k for k in range(1, 31) if mpc.refit_due(k, 10, (1, 2, 5))]
+    assert due == [1, 2, 5, 10, 20, 30]
+    assert not any(mpc.refit_due(k, 0, (1, 2)) for k in range(1, 31))
+
+
+def test_early_refits_fit_every_transition_so_far(controller):
+    """Refits after 2 and 5 transitions, then the regular one at 10: each early refit fits every
+    transition so far under the scene's prior, so the one at 10 is the MAP of all ten under the
+    scene's prior (the same as without early refits), found again here from the prior's centre;
+    the early estimates already move the pole's mass toward the plant's."""
+    tr = controller.transition
+    r = mpc.run(tr.model, plant(), 0.2, refit_every=10, early=(2, 5), controller=controller)
+    assert [e["step"] for e in r.estimates] == [0, 2, 5, 10]
+    memory = Memory.empty(tr.nx, tr.nu)
+    for x, u, x_next in zip(r.states[:-1], r.forces, r.states[1:]):
+        memory.add(x, u, x_next)
+    z0 = jnp.asarray(tr.centre[tr.index])
+    z, _ = controller.fit(z0, memory.x, memory.u, memory.x_next, memory.mask, z0,
+                          jnp.eye(len(z0)), 1.0)
+    again = {n: float(np.ravel(v)[0]) for n, v in tr.physical_values(z).items()}
+    assert np.allclose(list(again.values()), list(r.estimates[-1]["values"].values()),
+                       rtol=1e-3), (again, r.estimates[-1]["values"])
+    mass = [e["values"]["pole.mass"] for e in r.estimates]
+    assert abs(mass[2] - TRUE_MASS) < 0.5 * abs(mass[0] - TRUE_MASS), mass
 
 
 def test_terminal_cost_is_the_lqr_cost_to_go(controller):
