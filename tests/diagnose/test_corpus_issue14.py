@@ -1,8 +1,7 @@
 """Issue 14's checks on MuJoCo-made data, end to end through ``refine`` from the naive scene
 (slow: minutes each). No hidden effect: refine adds nothing. Linear against quadratic drag
 on a throw spanning 2-20 m/s: the right law is named and refitted to the truth. (The hinge
-viscous/Coulomb pair and the damped chain did not finish within the benchmark's limits at
-this code: see docs/diagnosis.md; they are not tests yet.)"""
+viscous/Coulomb pair and the damped chain: ``test_articulated_slow.py``.)"""
 from __future__ import annotations
 
 import csv
