@@ -77,7 +77,7 @@ class Comparison:
 
     def text(self) -> str:
         z = "n/a" if self.d_log_z is None else f"{self.d_log_z:+.1f}"
-        why = "" if self.loo_ok else " (PSIS-LOO unreliable: decided on Δlog Z)"
+        why = " (PSIS-LOO unreliable: decided on Δlog Z)" if self.by_evidence else ""
         return f"ΔELPD {self.d_elpd:+.1f} (tie margin {self.margin:.1f}), Δlog Z {z}{why}"
 
 
