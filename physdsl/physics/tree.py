@@ -19,7 +19,7 @@ from jax.scipy.linalg import cho_factor, cho_solve
 
 from .kinematics import Kin
 from .spatial import (cross_force, mm, mv, normalize, quat_axis_angle, quat_mul,
-                      spatial_inertia, unit_quat_to_mat)
+                      quat_to_mat, spatial_inertia, unit_quat_to_mat)
 from .structure import PhysicsModel
 
 # above this many dofs the articulated-body algorithm (``dynamics.forward_dynamics``): the
@@ -102,7 +102,7 @@ def _joint_motions(model: PhysicsModel, prm: dict, q):
                        for j in model.joints])
         x = qx[x3]
         qJ = jnp.where(free, quat_mul(qb, ref_q * jnp.array([1.0, -1.0, -1.0, -1.0], q.dtype)), qJ)
-    RJ = unit_quat_to_mat(qJ)  # unit: an axis-angle of a unit axis, normalised, or products
+    RJ = quat_to_mat(qJ)
     tJ = jnp.zeros_like(x)
     if kinds & {"hinge", "ball"}:
         tJ = jnp.where(hinge | ball, p - mv(RJ, p), 0.0)
@@ -119,7 +119,7 @@ def _subspaces(model: PhysicsModel, prm: dict, qD, tD, qb, x):
     are traced (``_kinds``)."""
     K = max([j.nv for j in model.joints] + [1])
     kinds = _kinds(model)
-    R = unit_quat_to_mat(qD)  # products of unit quaternions
+    R = quat_to_mat(qD)
     a_w, p_w = mv(R, prm["axis"]), mv(R, prm["anchor"]) + tD  # fixed by the joint's own motion
     cols = [jnp.zeros((model.nbody, 6), R.dtype) for _ in range(K)]
     if "hinge" in kinds:
@@ -134,7 +134,7 @@ def _subspaces(model: PhysicsModel, prm: dict, qD, tD, qb, x):
         for k in range(3):
             cols[k] = cols[k] + jnp.where(_mask(model, "ball")[:, None], ball[:, :, k], 0.0)
     if "free" in kinds:
-        Rb = unit_quat_to_mat(qb)  # normalised above
+        Rb = quat_to_mat(qb)
         eye = jnp.broadcast_to(jnp.eye(3, dtype=R.dtype), R.shape)
         free_t = jnp.concatenate([jnp.zeros_like(eye), eye], 1)
         free_r = jnp.concatenate([Rb, jnp.cross(x[:, :, None], Rb, axis=1)], 1)
@@ -158,7 +158,7 @@ def tree_kinematics(model: PhysicsModel, prm: dict, q, v) -> Kin:
     qD, tD = X[:, :4], X[:, 4:]
     S, own = _subspaces(model, prm, qD, tD, qb, x)
     quat = normalize(quat_mul(qD, prm["ref_quat"]))
-    pos = mv(unit_quat_to_mat(qD), prm["ref_pos"]) + tD
+    pos = mv(quat_to_mat(qD), prm["ref_pos"]) + tD
     vb = jnp.concatenate([v, jnp.zeros(1, q.dtype)])[vidx]  # (B, K)
     Sv_par = jnp.sum(S * jnp.where(own, 0.0, vb)[:, None, :], -1)
     Sv_own = jnp.sum(S * jnp.where(own, vb, 0.0)[:, None, :], -1)
@@ -168,7 +168,7 @@ def tree_kinematics(model: PhysicsModel, prm: dict, q, v) -> Kin:
     acc0 = _static_mm(A, c)
     S_dof = S[dof_body, :, dof_col]  # (nv, 6)
     jac = A[:, None, dof_body] * S_dof.T[None]  # (B, 6, nv)
-    rot = unit_quat_to_mat(quat)  # normalised above
+    rot = quat_to_mat(quat)
     com = pos + mv(rot, prm["com"])
     I_world = mm(mm(rot, prm["inertia"]), jnp.swapaxes(rot, -1, -2))
     inertia6 = spatial_inertia(prm["mass"], I_world, com)
