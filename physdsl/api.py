@@ -115,8 +115,9 @@ def refine(scene: Scene | str | Path, outdir: str | Path, *, allow_learned: bool
            learned: bool = True, **options) -> list[Round]:
     """The loop fit, check, diagnose, add the effect, refit until nothing improves the evidence;
     each round's files in ``outdir`` (see ``physdsl.diagnose.refine.refine`` for the options).
-    Where nothing in the library explains the misfit it learns a force and distils a law
-    (``learned=False``: it does not); the law enters the next round only with
+    Where nothing in the library explains the misfit, or the round's library winner leaves
+    systematic residuals and less than 90% of the misfit explained, it learns a force and
+    distils a law (``learned=False``: it does not); the law enters the next round only with
     ``allow_learned=True``, always labelled as outside the library."""
     return _refine(_scene_path(scene), outdir, beyond=_beyond_library if learned else None,
                    allow_learned=allow_learned, **options)

@@ -29,11 +29,13 @@ def register(app: typer.Typer) -> None:
                                           "loop may swap for another law or drop, like those it adds."),
         force: bool = typer.Option(False, "--force", help="Overwrite a non-empty output folder."),
         allow_learned: bool = typer.Option(False, "--allow-learned", help="Where no library effect "
-                                           "explains the misfit, add the law distilled from a learned "
-                                           "force to the next round (outside the library; without this "
-                                           "flag it is only reported)."),
+                                           "explains the misfit (or the best only half explains it), "
+                                           "add the law distilled from a learned force to the next "
+                                           "round when its evidence beats the library's (outside the "
+                                           "library; without this flag it is only reported)."),
         learned: bool = typer.Option(True, "--learned/--no-learned", help="Learn a force where the "
-                                     "library explains nothing, and report it (round-k/beyond/)."),
+                                     "library explains nothing or only half, and report it "
+                                     "(round-k/beyond/)."),
         executor: str = REFIT_EXECUTOR, workers: Optional[int] = REFIT_WORKERS,
         address: Optional[str] = REFIT_ADDRESS,
     ) -> None:
