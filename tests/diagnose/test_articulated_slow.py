@@ -32,13 +32,18 @@ def _summary(scene_path) -> dict:
         return {r["name"]: r for r in csv.DictReader(f)}
 
 
-def test_refine_names_coulomb_not_viscous_friction_in_the_hinge(tmp_path):
-    folder = HIDDEN / "hinge_coulomb"
+def _refine(name, tmp_path):
+    """(truth, final round, history, effects added) of refine on hidden-effect case ``name``."""
+    folder = HIDDEN / name
     truth = json.loads((folder / "truth.json").read_text())
     rounds = refine(folder / "naive.phys", tmp_path / "refine", seed=0, echo=print)
     final = rounds[-1]
     history = [(r.action, r.added, r.replaced, round(r.rms_sigma, 2)) for r in rounds]
-    added = _effects(final.scene) - _effects(folder / "naive.phys")
+    return truth, final, history, _effects(final.scene) - _effects(folder / "naive.phys")
+
+
+def test_refine_names_coulomb_not_viscous_friction_in_the_hinge(tmp_path):
+    truth, final, history, added = _refine("hinge_coulomb", tmp_path)
     assert added == {("joint_friction", ("hinge",))}, history  # the right law, alone
     assert final.rms_sigma <= 1.2, history
     row = _summary(final.scene)["joint_friction@hinge.torque"]
@@ -46,12 +51,7 @@ def test_refine_names_coulomb_not_viscous_friction_in_the_hinge(tmp_path):
 
 
 def test_refine_finds_damping_in_every_hinge_of_the_chain(tmp_path):
-    folder = HIDDEN / "damped_chain"
-    truth = json.loads((folder / "truth.json").read_text())
-    rounds = refine(folder / "naive.phys", tmp_path / "refine", seed=0, echo=print)
-    final = rounds[-1]
-    history = [(r.action, r.added, r.replaced, round(r.rms_sigma, 2)) for r in rounds]
-    added = _effects(final.scene) - _effects(folder / "naive.phys")
+    truth, final, history, added = _refine("damped_chain", tmp_path)
     assert added == {("joint_damping", (f"hinge{i}",)) for i in range(1, 5)}, history
     assert final.rms_sigma <= 1.2, history
     rows = [r for name, r in _summary(final.scene).items() if "joint_damping" in name]
