@@ -74,15 +74,17 @@ def draw_function(model, unravel, neg_log_prior):
     density is the Gauss-Newton function's (``least_squares_parts``; -inf where not finite),
     so the fit's value function is this one (``base.value_fn``) and the posterior pass
     (``output.posterior_pass``) reuses its compiled rollout instead of tracing another."""
-    constrain = jax.jit(lambda x: constrain_fn(model.prior_values, (), {}, unravel(x)))
-
-    @jax.jit
-    def read(x, values, rollout, data):
+    def read_off(x, values, rollout, data):
         preds = model.predict(values, rollout, data)
         ll = model.pointwise_log_likelihood(values, preds, data)
         lp = sum((jnp.sum(v) for v in ll.values()), -neg_log_prior(x))
         sites = {**values, **{PRED_PREFIX + k: v for k, v in preds.items()}}
         return sites, ll, jnp.where(jnp.isfinite(lp), lp, -jnp.inf)
+
+    # in the structure's cache by name, like every compiled stage (shared by other data)
+    constrain = model.cached("draw-constrain", lambda: jax.jit(
+        lambda x: constrain_fn(model.prior_values, (), {}, unravel(x))))
+    read = model.cached("draw-read", lambda: jax.jit(read_off))
 
     def draw(x, data):
         values = constrain(x)
