@@ -4,6 +4,7 @@ and one Jacobian gives every candidate's column (``score.py``)."""
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
@@ -18,6 +19,7 @@ from .workflow import noise_unknowns, point_estimate
 
 NUDGE = 1e-4  # one-sided strengths are tested this many prior sds inside the physical side
 IMPLAUSIBLE = 1000.0  # prior sds: a one-step estimate this far out is not a physical effect
+SCORE_TIE = 1e-6  # relative: scores closer than this are equal (what differs is rounding noise)
 
 
 def score_all(model, idata, draft: Draft | None = None) -> list[tuple[Candidate, ScoreResult]]:
@@ -53,8 +55,27 @@ def score_all(model, idata, draft: Draft | None = None) -> list[tuple[Candidate,
     for c in sensor_candidates(scene):
         cols = project_out(J_theta, sensor_columns(aug, values, c.name, c.target[0], pred))
         results.append((c, score_test(c.key, r, cols, 0)))
-    results.sort(key=lambda cr: (cr[1].log_p, -cr[1].statistic))
-    return results
+    return score_order(results)
+
+
+def score_order(results: list[tuple[Candidate, ScoreResult]]) -> list[tuple[Candidate, ScoreResult]]:
+    """``results`` by score, most significant first (log p, then the statistic). Scores equal to
+    ``SCORE_TIE`` relative keep the candidates' key order, so which of two equal candidates is
+    refitted first does not depend on rounding that differs between runs."""
+    ordered = sorted(results, key=lambda cr: (cr[1].log_p, -cr[1].statistic))
+    out, run = [], []
+    for cr in ordered:
+        if run and not _same_score(run[0][1], cr[1]):
+            out += sorted(run, key=lambda g: g[0].key)
+            run = []
+        run.append(cr)
+    return out + sorted(run, key=lambda g: g[0].key)
+
+
+def _same_score(a: ScoreResult, b: ScoreResult) -> bool:
+    """Two scores that differ by no more than rounding (``SCORE_TIE`` relative)."""
+    return (math.isclose(a.log_p, b.log_p, rel_tol=SCORE_TIE, abs_tol=1e-12)
+            and math.isclose(a.statistic, b.statistic, rel_tol=SCORE_TIE, abs_tol=1e-12))
 
 
 def _split_columns(aug, tested: list[str], J_psi) -> list[np.ndarray]:
