@@ -32,7 +32,7 @@ from .loo import loo_reliability
 from .quality import fit_quality
 from .rank import diagnose
 from .report import html_page, new_figure, save_png
-from .stepwise import EXPERIMENT, judge, parse, reexamine
+from .stepwise import judge, parse, reexamine
 from .workflow import check_model, point_estimate
 
 
@@ -176,8 +176,7 @@ def _reexamine(loop: _Loop, k: int, current: Path, draft: Draft, now, due, effec
     """Re-examine ``due`` given the effects now present; the next round's file where a swap or
     a drop wins, else None."""
     loop.echo(f"round {k}: re-examining {', '.join(_name(c) for c in due)} given the effects now present")
-    act, lines = reexamine(now, draft, due, loop.echo)
-    loop.ties = [line for line in lines if EXPERIMENT in line]  # said where the loop stops
+    act, _, loop.ties = reexamine(now, draft, due, loop.echo)  # ties: said where the loop stops
     for c in due:
         if c.key in loop.revisable:
             loop.revisable[c.key] = (c, effects)

@@ -143,14 +143,14 @@ class Action:
 
 
 def reexamine(current: Judged, draft: Draft, revisable: list[Candidate], echo=None
-              ) -> tuple[Action | None, list]:
+              ) -> tuple[Action | None, list, list]:
     """Refit each of ``revisable`` (effects in ``current``'s scene, ``draft``) dropped and
     swapped for each alternative, given the rest of the scene; return the best winning action
-    (by Δlog Z, then a drop before a swap, then ΔELPD) or None, and the lines describing every
-    refit."""
+    (by Δlog Z, then a drop before a swap, then ΔELPD) or None, the lines describing every
+    refit, and those of the swaps the data cannot decide that have an experiment proposed."""
     echo = echo or (lambda line: None)
     start = point_estimate(current.model, current.idata)
-    wins, lines = [], []
+    wins, lines, ties = [], [], []
     for cand in revisable:
         if _required(draft, cand):  # wind stays on drag: neither goes while the other is there
             continue
@@ -171,21 +171,23 @@ def reexamine(current: Judged, draft: Draft, revisable: list[Candidate], echo=No
                 continue
             c = compare(new, current)
             ok = drop_wins(c) if alt is None else swap_wins(c)
-            tie = ""
+            tie, proposal = "", None
             if alt is not None and not ok and tied(c):  # the data cannot tell: say what would
                 proposal = experiment(current, new, cand, alt)
                 tie = f" — a tie{f'; {EXPERIMENT}: {proposal.text()}' if proposal else ''}"
             lines.append(f"{what}: {c.text()}, RMS {new.report.rms_sigma:.2f}σ"
                          f"{' — wins' if ok else tie} ({time.perf_counter() - t0:.0f} s)")
             echo(f"    {lines[-1]}")
+            if proposal is not None:
+                ties.append(lines[-1])
             if ok:
                 wins.append(Action("dropped" if alt is None else "swapped", cand, alt, new_draft, new, c))
     if not wins:
-        return None, lines
+        return None, lines, ties
     # most evidence first; where it is n/a, a drop before a swap (fewer parameters), then ΔELPD
     best = max(wins, key=lambda a: (a.comparison.d_log_z if a.comparison.d_log_z is not None
                                     else -math.inf, a.kind == "dropped", a.comparison.d_elpd))
-    return best, lines
+    return best, lines, ties
 
 
 EXPERIMENT = "the experiment that would decide"
