@@ -20,6 +20,11 @@ mean in unconstrained space (supports hold): along each direction where V exceed
 posterior covariance (generalised eigenvalues above 1) the spread grows to V's, elsewhere it
 is kept, so intervals only widen. Noise-scale unknowns keep their posterior.
 
+An impact informs the unknowns through the contact law, an idealisation whose error the
+residuals need not show: ``contact_law`` adds the covariance that each impacting pair's
+restitution, free within a few percent instead of fixed, gives the unknowns (the Laplace
+approximation marginalised over it), along with the rest.
+
 A misfit confined to part of the record (an impact) is averaged away by those stationary
 residual models; the scores' own long-run covariance (Newey-West over psi_t = C_t r_t, all
 components on one time grid) counts it where it is, and replaces the REML sandwich along the
@@ -45,6 +50,7 @@ from scipy.stats import chi2
 from ..compile import PRED_PREFIX
 from ..expr import references
 from . import posterior_data
+from . import contact_law
 from .base import cached
 from .block_check import block_factors, full_mode
 from .problem import unconstrained_layout, unraveler
@@ -300,6 +306,9 @@ def add_robust(idata, model, problem, flat: np.ndarray, constrained: dict, shown
         idata.attrs["intervals"] = "model"
         idata.attrs["intervals_note"] = "robust intervals unavailable: a singular posterior covariance"
         return idata
+    contact = _contact_term(model, problem, X, keep, sigma, V, f) if shown == "robust" else None
+    if contact is not None and "A" in contact:
+        A, f = contact.pop("A"), contact.pop("factors")
     Xr = X.copy()
     Xr[:, keep] = m[keep] + (X[:, keep] - m[keep]) @ A.T
     block = _block_check(problem, X, keep, Xr, m, on_block) if shown == "robust" else None
@@ -312,14 +321,35 @@ def add_robust(idata, model, problem, flat: np.ndarray, constrained: dict, shown
     found = [fit for fit in fits if fit["kind"] in KERNELS]
     posterior_data.add_group(idata, GROUP, post, {
         "method": METHOD + (" + " + HAC_METHOD if hac and hac[0]["directions"] else "")
+        + (" + " + contact_law.METHOD if contact and contact.get("widened") else "")
         + (" + " + BLOCK_METHOD if block and "p_value" in block else ""),
         "max_widening": float(max(f.max(initial=1.0), widest.max(initial=1.0))),
         "block_check": json.dumps(block if block is not None else {"note": "not run"}),
         "residual_models": json.dumps(fits),
         "score_hac": json.dumps(hac[0] if hac else {}),
+        "contact_law": json.dumps(contact if contact is not None else {"note": "not run"}),
         "discrepancies": f"{len(found)} of {len(fits)} residual components"})
     idata.attrs["intervals"] = shown
     return idata
+
+
+def _contact_term(model, problem, X, keep, sigma, V, f) -> dict | None:
+    """``contact_law.marginal_covariance`` added to the sandwich ``V``: None where the scene
+    has no pair with a fixed restitution (nothing computed), else its figures, with the new
+    widening map ``A`` and ``factors`` and whether it widened (beyond ``f``, the factors
+    without it) where it was computed."""
+    if not contact_law.nuisance_pairs(model.scene):
+        return None
+    try:
+        found = contact_law.marginal_covariance(model, problem, full_mode(problem, X))
+        if found is None:
+            return {"note": "not possible: no least-squares curvature"}
+        A, f2 = widening(sigma, V[np.ix_(keep, keep)] + found["cov"][np.ix_(keep, keep)])
+    except (np.linalg.LinAlgError, ValueError, FloatingPointError) as err:  # a widening only
+        return {"note": f"not possible: {type(err).__name__}: {err}"}
+    widened = bool(np.any(f2 > f * (1.0 + 1e-9)))
+    return {"pairs": found["pairs"], "eta_sd": found["eta_sd"], "width": found["width"],
+            "widened": widened, "A": A, "factors": f2}
 
 
 def _block_check(problem, X, keep, Xr, m, on_block=None) -> dict | None:
