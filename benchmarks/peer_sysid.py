@@ -38,6 +38,7 @@ import csv
 import json
 import math
 import os
+import re
 import resource
 import shutil
 import subprocess
@@ -409,17 +410,22 @@ def physdsl_fit(folder: Path, run: Path) -> dict:
 
 def _timed(cmd: list[str], cwd: Path, timeout: float, env=None):
     """(completed process or None on timeout, wall s, CPU s of the child)."""
+    from fits import _cpu_since
+
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     try:
         proc = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=timeout,
                               env=env)
-    except subprocess.TimeoutExpired:
+    except subprocess.TimeoutExpired:  # (the child is killed and reaped: its CPU is counted)
         proc = None
-    wall = time.perf_counter() - t0
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
-    return proc, wall, cpu
+    return proc, time.perf_counter() - t0, _cpu_since(before)
+
+
+def _stages(log: str) -> dict:
+    """Wall seconds per stage from physdsl's progress lines (``STAGE: done in X s``)."""
+    return {m[1].strip().replace(" ", "_"): float(m[2])
+            for m in re.finditer(r"^([a-z][a-z ]*): done in ([0-9.]+) s", log, re.M)}
 
 
 def _tail(proc) -> str:
@@ -451,7 +457,8 @@ def run_case(name: str, timeout: float, warm: bool) -> dict:
             out[key] = ({"error": f"did not finish within {timeout:.0f} s"} if proc is None else
                         {"error": f"failed (exit {proc.returncode}): {_tail(proc)}"}
                         if proc.returncode != 0 else
-                        {**physdsl_fit(folder, run), "wall": wall, "cpu": cpu})
+                        {**physdsl_fit(folder, run), "wall": wall, "cpu": cpu,
+                         "stages": _stages(proc.stdout + "\n" + proc.stderr)})
     out["load"] = " ".join(f"{x:.1f}" for x in os.getloadavg())
     return out
 
@@ -472,6 +479,8 @@ def _print(r: dict) -> None:
         print(f"{tool}_wall_s.{n}: {res['wall']:.1f}")
         print(f"{tool}_cpu_s.{n}: {res['cpu']:.1f}")
         print(f"{tool}_rms_sigma.{n}: {res['rms']:.4f}")
+        for stage, sec in res.get("stages", {}).items():
+            print(f"{tool}_stage_wall_s.{n}.{stage}: {sec:.1f}")
         for k, v in res["fit"].items():
             print(f"{tool}_fit.{n}.{k}: {_fmt(v)} [{_fmt(res['lo'][k])}, {_fmt(res['hi'][k])}]"
                   f" truth {_fmt(r['truth'][k]) if k in r['truth'] else '?'}")
