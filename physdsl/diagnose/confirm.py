@@ -206,17 +206,22 @@ def refit_start(model, idata, cand: Candidate, estimate: float | None) -> dict:
     """
     if cand.kind == "sensor":
         return {**point_estimate(model, idata), unknown_key(model.scene, cand): start_value(cand, estimate)}
-    decl = model.scene.effect_library[cand.name].strength
+    return {**point_estimate(model, idata), **strength_start(model.scene, cand, estimate)}
+
+
+def strength_start(scene, cand: Candidate, estimate: float | None = None) -> dict:
+    """Start values of the strength ``cand`` adds to ``scene`` (which lacks it): its off value
+    moved by the one-step ``estimate``, a one-sided strength at least a hair inside its physical
+    side, so the scene with it starts where it nests ``scene``; {} for a vector strength (a
+    wind: its prior draws the start)."""
+    decl = scene.effect_library[cand.name].strength
     off = np.asarray(decl.off if decl.off is not None else 0.0, dtype=float)
-    start = dict(point_estimate(model, idata))
-    if off.ndim or decl.shape:  # a vector strength (wind): its prior draws the start
-        return start
+    if off.ndim or decl.shape:
+        return {}
     step = float(estimate) if estimate is not None and np.isfinite(estimate) else 0.0
     if decl.sign:  # one-sided: at least a hair inside the physical side
         step = decl.sign * max(decl.sign * step, 1e-3 * max(abs(float(off)), 1.0))
-    for key in unknown_keys(model.scene, cand):
-        start[key] = float(off) + step
-    return start
+    return {key: float(off) + step for key in unknown_keys(scene, cand)}
 
 
 def snippet(before: str, after: str) -> str:

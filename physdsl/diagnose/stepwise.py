@@ -32,7 +32,7 @@ from ..design.experiment import design
 from ..errors import UsageError
 from ..infer.fit import quick_fit
 from .candidates import REQUIRES, Candidate, physics_candidates
-from .confirm import REFIT_FAILURES
+from .confirm import REFIT_FAILURES, strength_start
 from .edits import Draft
 from .evidence import STRONG, laplace_log_evidence
 from .loo import combined_loo, tie_margin, unreliable
@@ -164,6 +164,8 @@ def reexamine(current: Judged, draft: Draft, revisable: list[Candidate], echo=No
                 new_draft = bare if alt is None else bare.resolved(module)
                 model = Model(new_draft.scene)
                 begin = {k: v for k, v in start.items() if k in set(model.unknown_names)}
+                if alt is not None:  # the swapped-in law starts off: the bare scene it nests
+                    begin.update(strength_start(bare.scene, alt))
                 new = judge(model, quick_fit(model, start=begin))
             except REFIT_FAILURES as err:
                 lines.append(f"{what}: refit failed ({getattr(err, 'message', None) or err})")
