@@ -306,12 +306,11 @@ def add_robust(idata, model, problem, flat: np.ndarray, constrained: dict, shown
         idata.attrs["intervals"] = "model"
         idata.attrs["intervals_note"] = "robust intervals unavailable: a singular posterior covariance"
         return idata
-    contact = _contact_term(model, problem, X, keep, sigma, V, f) if shown == "robust" else None
-    if contact is not None and "A" in contact:
-        A, f = contact.pop("A"), contact.pop("factors")
     Xr = X.copy()
     Xr[:, keep] = m[keep] + (X[:, keep] - m[keep]) @ A.T
-    block = _block_check(problem, X, keep, Xr, m, on_block) if shown == "robust" else None
+    mode = _mode(problem, X) if shown == "robust" else None
+    block = _block_check(problem, X, keep, Xr, m, mode, on_block) if shown == "robust" else None
+    contact = _contact_term(model, problem, mode, keep, Xr, m) if shown == "robust" else None
     widest = Xr[:, keep].std(axis=0) / X[:, keep].std(axis=0)
     values = _constrain(model, problem)(jnp.asarray(Xr))
     post = {u: np.asarray(values[u]).reshape(chains, samples, *np.shape(values[u])[1:])
@@ -333,32 +332,45 @@ def add_robust(idata, model, problem, flat: np.ndarray, constrained: dict, shown
     return idata
 
 
-def _contact_term(model, problem, X, keep, sigma, V, f) -> dict | None:
-    """``contact_law.marginal_covariance`` added to the sandwich ``V``: None where the scene
-    has no pair with a fixed restitution (nothing computed), else its figures, with the new
-    widening map ``A`` and ``factors`` and whether it widened (beyond ``f``, the factors
-    without it) where it was computed."""
+def _mode(problem, X):
+    """The full data's mode (``block_check.full_mode``), once for the block check and the
+    contact law; None where it cannot be found (each then says why it did not run)."""
+    try:
+        return full_mode(problem, X)
+    except (np.linalg.LinAlgError, ValueError, FloatingPointError):
+        return None
+
+
+def _contact_term(model, problem, mode, keep, Xr, m) -> dict | None:
+    """``contact_law.marginal_covariance`` added to the covariance of the draws ``Xr`` as the
+    sandwich and the block check left them (in place: a common error of every block, it is
+    no scatter between blocks, so the block check's scale does not include it). None where the
+    scene has no pair with a fixed restitution (nothing computed), else its figures and
+    whether it widened."""
     if not contact_law.nuisance_pairs(model.scene):
         return None
     try:
-        found = contact_law.marginal_covariance(model, problem, full_mode(problem, X))
+        found = None if mode is None else contact_law.marginal_covariance(model, problem, mode)
         if found is None:
-            return {"note": "not possible: no least-squares curvature"}
-        A, f2 = widening(sigma, V[np.ix_(keep, keep)] + found["cov"][np.ix_(keep, keep)])
+            return {"note": "not possible: no mode, or no least-squares curvature"}
+        sigma = np.cov(Xr[:, keep], rowvar=False).reshape(keep.size, keep.size)
+        A, f = widening(sigma, sigma + found["cov"][np.ix_(keep, keep)])
     except (np.linalg.LinAlgError, ValueError, FloatingPointError) as err:  # a widening only
         return {"note": f"not possible: {type(err).__name__}: {err}"}
-    widened = bool(np.any(f2 > f * (1.0 + 1e-9)))
+    Xr[:, keep] = m[keep] + (Xr[:, keep] - m[keep]) @ A.T
     return {"pairs": found["pairs"], "eta_sd": found["eta_sd"], "width": found["width"],
-            "widened": widened, "A": A, "factors": f2}
+            "widened": bool(np.any(f > 1.0 + 1e-9)), "largest": float(f.max(initial=1.0))}
 
 
-def _block_check(problem, X, keep, Xr, m, on_block=None) -> dict | None:
+def _block_check(problem, X, keep, Xr, m, mode, on_block=None) -> dict | None:
     """``block_check``: where its refits on time blocks scatter more than the sandwich's
     intervals explain, widen the draws ``Xr`` (in place) per coordinate by the measured
     excess over them (no double count). Its figures, or a note saying why there are none."""
     have = Xr[:, keep].std(axis=0) / X[:, keep].std(axis=0)
+    if mode is None:
+        return {"note": "not possible: no mode found"}
     try:
-        found = block_factors(problem, full_mode(problem, X), keep, scale=have, on_block=on_block)
+        found = block_factors(problem, mode, keep, scale=have, on_block=on_block)
     except (np.linalg.LinAlgError, ValueError, FloatingPointError) as err:  # a check only
         return {"note": f"not possible: {type(err).__name__}: {err}"}
     if found is None:
