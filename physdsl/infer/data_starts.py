@@ -23,6 +23,7 @@ from scipy.optimize import minimize
 from ..expr import evaluate, references
 from ..observe import trajectory
 from ..physics.simulator import observe
+from .base import cached
 from .problem import unconstrained_layout, unraveler
 
 WINDOW_S = 0.2  # at most the first 0.2 s of a track ...
@@ -177,7 +178,18 @@ def _objective(problem, names: tuple[str, ...], estimates: list[Estimate]):
 
     numbers = [tuple(None if a is None else jnp.asarray(a, dtype=float)
                      for a in (e.value, e.value_sd, e.slope, e.slope_sd)) for e in estimates]
+    # one compiled program per structure and set of tracks: the start from the data and the
+    # prior draws thrown as the data say (``multistart``) share it (each compiled its own)
+    key = ("data-start-misfit", names, tuple((e.quantity, e.target, e.recording,
+                                              e.slope is None) for e in estimates))
+    jitted = cached(problem, key, lambda: jax.jit(jax.value_and_grad(
+        _misfit(model, sim, estimates, unravel))))
+    return (lambda x: jitted(x, numbers)), mask
 
+
+def _misfit(model, sim, estimates, unravel):
+    """(x, numbers) -> misfit at t = 0 of the ``estimates`` (their numbers an argument) plus
+    the negative log prior."""
     def misfit(x, numbers):
         u = unravel(x)
         values = constrain_fn(model.prior_values, (), {}, u)
@@ -199,8 +211,7 @@ def _objective(problem, names: tuple[str, ...], estimates: list[Estimate]):
                 total = total + 0.5 * jnp.sum(((ps - slope) / slope_sd) ** 2)
         return total
 
-    jitted = jax.jit(jax.value_and_grad(misfit))
-    return (lambda x: jitted(x, numbers)), mask
+    return misfit
 
 
 def _key(path) -> str:

@@ -157,11 +157,23 @@ def _lcp_step(model, prm, state, t, h, forward_only=False):
             q_next = integrate_q(model, q, v_position, hh)
         return State(q_next, v_next, cf * (hh / h), con.normal)
 
-    def impact_first(o):
-        """The scene's integrator up to the first impact, the LCP step for the rest: the impulse
-        acts along the normals and lever arms of the bodies where they touch."""
-        tau = o[-1]
-        s = _flight(model, prm, state, t, tau, a, v + tau * a)
+    # The scene's integrator up to the first time a gap closes (tau), or over the whole step
+    # where no contact is near (tau = h): one copy of it, outside the branch, for both (the
+    # contact branch used to hold a second copy). Unsplit where some contact is closed
+    # already (it may carry a load and friction that a contact-free advance would drop).
+    near = jnp.any(con.active)
+    tau, _, closes = cm.impact_time(con.Jn @ v, con.Jn @ v_free, con.dist, h)
+    closes = closes & con.active
+    tau = jnp.minimum(jnp.min(jnp.where(closes, tau, h), initial=h), (1.0 - IMPACT_GAP) * h)
+    split = jnp.any(closes) & (tau > IMPACT_GAP * h) & ~jnp.any(con.active & (con.dist <= 0))
+    # (an advance by 0 where a contact is near and the step is not split: the same step)
+    tau = jnp.where(near, jnp.where(split, tau, 0.0), h)
+    s = _flight(model, prm, state, t, tau, a, v + tau * a)
+
+    def contact(o):
+        """The LCP step for the rest of the step from the state at the first impact: the
+        impulse acts along the normals and lever arms of the bodies where they touch."""
+        s, tau = o
         kin2 = kinematics(model, prm, s.q, s.v, with_jac=True)
         a2 = accel(model, prm, kin2, applied_load(model, prm, kin2, s, t + tau, t))
         h2 = h - tau
@@ -169,25 +181,10 @@ def _lcp_step(model, prm, state, t, h, forward_only=False):
         con2 = cs.closing_within(cs.detect_all(model, prm, kin2, s.v), v_free2, h2)
         return lcp((prm, s.q, s.v, kin2, con2, v_free2), t + tau, h2)
 
-    def contact(o):
-        """Split at the first time a gap closes, unless some contact is closed already (it
-        may carry a load and friction that a contact-free advance would drop)."""
-        _, _, v, _, con, v_free = o
-        tau, _, closes = cm.impact_time(con.Jn @ v, con.Jn @ v_free, con.dist, h)
-        closes = closes & con.active
-        tau = jnp.minimum(jnp.min(jnp.where(closes, tau, h), initial=h),
-                          (1.0 - IMPACT_GAP) * h)
-        split = jnp.any(closes) & (tau > IMPACT_GAP * h) & ~jnp.any(con.active & (con.dist <= 0))
-        # one path (an advance by 0 where there is no split: the same step, a graph half the
-        # size, which XLA compiles in half the time)
-        return impact_first(o + (jnp.where(split, tau, 0.0),))
-
     def apart(o):
-        s = _flight(model, prm, state, t, h, a, v_free)
-        return State(s.q, s.v, jnp.zeros(model.ncon, v.dtype), con.normal)
+        return State(o[0].q, o[0].v, jnp.zeros(model.ncon, v.dtype), con.normal)
 
-    return either(jnp.any(con.active), contact, apart, (prm, q, v, kin, con, v_free),
-                  forward_only)
+    return either(near, contact, apart, (s, tau), forward_only)
 
 
 @contact_model("compliant")
