@@ -17,7 +17,8 @@ pointwise differences, at least 4) and the Laplace log evidence Δlog Z (``evide
 which counts complexity. A swap needs ΔELPD beyond the margin with the evidence not against it,
 or, within the margin, strong evidence (Bayes factor > 10). A drop needs ΔELPD within the margin
 (the effect no longer predicts anything) with the evidence for the smaller scene. Where the
-evidence is n/a (a kink at the mode) ΔELPD alone decides.
+evidence is n/a (a kink at the mode) ΔELPD alone decides; where a fit's PSIS-LOO is unreliable
+too, nothing does, and the scene stays as it is.
 """
 from __future__ import annotations
 
@@ -75,9 +76,15 @@ class Comparison:
         """Decided on Δlog Z alone: a fit's LOO is unreliable and the evidence is known."""
         return not self.loo_ok and self.d_log_z is not None
 
+    @property
+    def unreadable(self) -> bool:
+        """Nothing can be read: a fit's PSIS-LOO is unreliable and the evidence is n/a."""
+        return not self.loo_ok and self.d_log_z is None
+
     def text(self) -> str:
         z = "n/a" if self.d_log_z is None else f"{self.d_log_z:+.1f}"
-        why = " (PSIS-LOO unreliable: decided on Δlog Z)" if self.by_evidence else ""
+        why = (" (PSIS-LOO unreliable: decided on Δlog Z)" if self.by_evidence else
+               " (PSIS-LOO unreliable, Δlog Z n/a: no evidence either way)" if self.unreadable else "")
         return f"ΔELPD {self.d_elpd:+.1f} (tie margin {self.margin:.1f}), Δlog Z {z}{why}"
 
 
@@ -91,7 +98,10 @@ def compare(new: Judged, old: Judged) -> Comparison:
 def swap_wins(c: Comparison) -> bool:
     """Another law beats the current one: it predicts better beyond the tie margin and the
     evidence does not disagree, or, predicting alike, the evidence is strong (> log 10); where
-    a fit's PSIS-LOO is unreliable, strong evidence alone."""
+    a fit's PSIS-LOO is unreliable, strong evidence alone, and with the evidence n/a too, no
+    swap (the current scene needs no evidence to stay, a change does)."""
+    if c.unreadable:
+        return False
     if c.by_evidence:
         return c.d_log_z > STRONG
     if c.d_elpd > c.margin:
@@ -102,7 +112,9 @@ def swap_wins(c: Comparison) -> bool:
 def drop_wins(c: Comparison) -> bool:
     """The scene without an effect (``c``: without against with) predicts as well (within the
     tie margin) and the evidence, which counts the effect's parameter, prefers it; where a
-    fit's PSIS-LOO is unreliable, the evidence alone."""
+    fit's PSIS-LOO is unreliable, the evidence alone, and with the evidence n/a too, no drop."""
+    if c.unreadable:
+        return False
     if c.by_evidence:
         return c.d_log_z > 0
     return c.d_elpd > -c.margin and (c.d_log_z is None or c.d_log_z > 0)
@@ -196,7 +208,10 @@ EXPERIMENT = "the experiment that would decide"
 
 
 def tied(c: Comparison) -> bool:
-    """Neither scene is better: ΔELPD within the tie margin and no strong evidence either way."""
+    """Neither scene is better: ΔELPD within the tie margin and no strong evidence either way
+    (no claim where nothing can be read: ``Comparison.unreadable``)."""
+    if c.unreadable:
+        return False
     if c.by_evidence:
         return abs(c.d_log_z) <= STRONG
     return abs(c.d_elpd) <= c.margin and (c.d_log_z is None or abs(c.d_log_z) <= STRONG)
