@@ -135,7 +135,7 @@ def marginal_covariance(model, problem, mode, width: float = WIDTH) -> dict | No
     G = _central(lambda e: f(mode, np.exp(e)), np.zeros(len(pairs)), np.eye(len(pairs)), STEP)
     moved = np.flatnonzero(np.any(G != 0.0, axis=0))  # the pairs that impact in the record
     if moved.size == 0:
-        return {"cov": np.zeros_like(H), "pairs": [], "eta_sd": []}
+        return {"cov": np.zeros_like(H), "pairs": [], "eta_sd": [], "width": width}
     G = G[:, moved]
     Jw = _central(lambda x: f(x, one), mode, L, WHITE_STEP)  # J L: the whitened Jacobian
     A = Jw.T @ G  # (d, P): H_theta,eta in whitened theta (H_theta,theta = I there)
