@@ -18,7 +18,11 @@ which counts complexity. A swap needs ΔELPD beyond the margin with the evidence
 or, within the margin, strong evidence (Bayes factor > 10). A drop needs ΔELPD within the margin
 (the effect no longer predicts anything) with the evidence for the smaller scene. Where the
 evidence is n/a (a kink at the mode) ΔELPD alone decides; where a fit's PSIS-LOO is unreliable
-too, nothing does, and the scene stays as it is.
+too, nothing does, and the scene stays as it is. A swap never rests on the priors alone: where
+the two laws reach the same best fit (maximum log likelihood within ``FIT_TIE``), their Δlog Z
+is the ratio of the priors' Occam factors, which a generic prior width (a steady push's 1 N per
+axis) sets as much as the physics, so it is a tie: the current law stays and the experiment
+that would decide is proposed.
 """
 from __future__ import annotations
 
@@ -70,6 +74,18 @@ class Comparison:
     margin: float
     d_log_z: float | None
     loo_ok: bool = True
+    d_fit: float | None = None  # Δ maximum log likelihood, −½Δχ² at the two modes (None: unknown)
+
+    @property
+    def fits_alike(self) -> bool:
+        """Both scenes reach the same best fit: the data prefer neither (``FIT_TIE``)."""
+        return self.d_fit is not None and abs(self.d_fit) < FIT_TIE
+
+    @property
+    def priors_only(self) -> bool:
+        """What Δlog Z would decide here is the priors' Occam factors alone: the same best fit,
+        and ΔELPD within its margin or unreadable."""
+        return self.fits_alike and (not self.loo_ok or abs(self.d_elpd) <= self.margin)
 
     @property
     def by_evidence(self) -> bool:
@@ -88,19 +104,29 @@ class Comparison:
         return f"ΔELPD {self.d_elpd:+.1f} (tie margin {self.margin:.1f}), Δlog Z {z}{why}"
 
 
+FIT_TIE = 1.0  # log-likelihood units: two best fits closer than this are alike (Δχ² < 2)
+
+
 def compare(new: Judged, old: Judged) -> Comparison:
     new_points, old_points = np.asarray(new.loo.loo_i), np.asarray(old.loo.loo_i)
     dz = None if new.log_z is None or old.log_z is None else new.log_z - old.log_z
     return Comparison(float((new_points - old_points).sum()), tie_margin(new_points, old_points), dz,
-                      not (unreliable(new.loo) or unreliable(old.loo)))
+                      not (unreliable(new.loo) or unreliable(old.loo)),
+                      -0.5 * (_chi2(new.report) - _chi2(old.report)))
+
+
+def _chi2(report) -> float:
+    """The fit's χ²: its standardised residuals' sum of squares (RMS² times their count)."""
+    return float(report.rms_sigma) ** 2 * int(report.n)
 
 
 def swap_wins(c: Comparison) -> bool:
     """Another law beats the current one: it predicts better beyond the tie margin and the
     evidence does not disagree, or, predicting alike, the evidence is strong (> log 10); where
     a fit's PSIS-LOO is unreliable, strong evidence alone, and with the evidence n/a too, no
-    swap (the current scene needs no evidence to stay, a change does)."""
-    if c.unreadable:
+    swap (the current scene needs no evidence to stay, a change does); never on the priors
+    alone (``Comparison.priors_only``)."""
+    if c.unreadable or c.priors_only:
         return False
     if c.by_evidence:
         return c.d_log_z > STRONG
@@ -209,7 +235,10 @@ EXPERIMENT = "the experiment that would decide"
 
 def tied(c: Comparison) -> bool:
     """Neither scene is better: ΔELPD within the tie margin and no strong evidence either way
-    (no claim where nothing can be read: ``Comparison.unreadable``)."""
+    (no claim where nothing can be read: ``Comparison.unreadable``), or the same best fit where
+    only the priors would decide (``Comparison.priors_only``)."""
+    if c.priors_only:
+        return True
     if c.unreadable:
         return False
     if c.by_evidence:

@@ -333,3 +333,20 @@ def test_a_swapped_in_law_starts_at_its_off_value_beside_the_current_fit(tmp_pat
         names, start = starts[law]
         assert set(start) == names == {"hinge.initial", key}, (law, names, start)
         assert start["hinge.initial"] == fitted["hinge.initial"] and 0.0 < start[key] <= 1e-3
+
+
+def test_a_swap_never_rests_on_the_priors_alone():
+    """Two laws that reach the same best fit differ in Laplace evidence only by their priors'
+    Occam factors. two_effects_throw (MuJoCo, drag + a steady push): with drag in, `wind`
+    refitted at 0.9316σ against the constant force's 0.9322σ (Δχ² 0.3 over 273 residuals),
+    PSIS-LOO unreliable, Δlog Z +6.1, and the force (1 N per axis, a generic prior) was
+    swapped out; with a 0.1 N prior the two log Z were equal. Such a swap is a tie: the current
+    law stays and the experiment that would decide is proposed."""
+    by_priors = Comparison(-148.2, 53.8, 6.1, loo_ok=False, d_fit=0.15)
+    assert not swap_wins(by_priors) and tied(by_priors)
+    assert not swap_wins(Comparison(2.0, 8.0, 3.0, d_fit=-0.4)) and tied(Comparison(2.0, 8.0, 3.0, d_fit=-0.4))
+    # where the data prefer the new law (a better best fit), the evidence decides as before
+    assert swap_wins(Comparison(-148.2, 53.8, 6.1, loo_ok=False, d_fit=4.0))
+    assert swap_wins(Comparison(2.0, 8.0, 3.0, d_fit=2.5))
+    # predicting better beyond the margin is the data speaking, whatever the best fits
+    assert swap_wins(Comparison(50.0, 8.0, 40.0, d_fit=0.5))
