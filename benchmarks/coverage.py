@@ -22,7 +22,8 @@ Run: .venv/bin/python benchmarks/coverage.py [--case pendulum ...] [--samples 50
 ``--saved DIR`` re-reads the posteriors ``fits.py --save DIR`` wrote (DIR/CASE.nc, fits.py's
 cases) and recomputes the robust intervals with the current method, without refitting: the
 same fits' intervals before and after a change of ``infer/intervals.py`` (``--no-hac``: the
-method without the scores' HAC term, as before issue 21's last change).
+method without the scores' HAC term, as before issue 21's last change; ``--no-contact-law``:
+without the contact law's error term, ``infer/contact_law.py``).
 """
 from __future__ import annotations
 
@@ -131,7 +132,7 @@ def run_case(name: str, samples: int) -> dict:
             "block_note": block.get("note", "")}
 
 
-def saved_case(name: str, path: Path, hac: bool = True) -> dict:
+def saved_case(name: str, path: Path, hac: bool = True, contact: bool = True) -> dict:
     """One fits.py case's saved posterior: the robust intervals recomputed now (the draws,
     their predictions and the scene are those of the fit), per true component in
     ``run_case``'s form, and the CPU seconds the intervals took."""
@@ -160,23 +161,26 @@ def saved_case(name: str, path: Path, hac: bool = True) -> dict:
     constrained = {**values, **{k: flat_of(pred, k) for k in pred.data_vars}}
     fresh = posterior_data.from_dict({"posterior": {k: np.asarray(post[k].values)
                                                    for k in model.unknown_names}})
-    level = intervals.HAC_LEVEL
+    level, pairs = intervals.HAC_LEVEL, intervals.contact_law.nuisance_pairs
     intervals.HAC_LEVEL = level if hac else 0.0
+    if not contact:
+        intervals.contact_law.nuisance_pairs = lambda scene: []
     t0 = time.process_time()
     try:
         fresh = intervals.add_robust(fresh, model, model_problem(model), flat, constrained)
     finally:
-        intervals.HAC_LEVEL = level
+        intervals.HAC_LEVEL, intervals.contact_law.nuisance_pairs = level, pairs
     cpu = time.process_time() - t0
     robust = posterior_data.group(fresh, intervals.GROUP)
     truth = json.loads((folder / "truth.json").read_text()).get("parameters", {})
     rows = interval_rows({k: v for k, v in truth.items() if k in values}, post, robust)
     block = json.loads(robust.attrs.get("block_check", "{}"))
     return {"rows": rows, "intervals_cpu_s": cpu, "hac": json.loads(robust.attrs.get("score_hac", "{}")),
-            "block_p": block.get("p_value"), "block_factors": block.get("factors")}
+            "block_p": block.get("p_value"), "block_factors": block.get("factors"),
+            "contact_law": json.loads(robust.attrs.get("contact_law", "{}"))}
 
 
-def main_saved(folder: str, names: list[str], hac: bool) -> None:
+def main_saved(folder: str, names: list[str], hac: bool, contact: bool = True) -> None:
     """``--saved``: per case and component, the plain and the recomputed robust interval."""
     import numpy as np
 
@@ -184,12 +188,13 @@ def main_saved(folder: str, names: list[str], hac: bool) -> None:
     for path in sorted(Path(folder).glob("*.nc")):
         if names and path.stem not in names:
             continue
-        out = saved_case(path.stem, path, hac)
+        out = saved_case(path.stem, path, hac, contact)
         rows += out["rows"]
         p = out["block_p"]
         print(f"case.{path.stem}: intervals {out['intervals_cpu_s']:.1f} s CPU; block check p "
               f"{'n/a' if p is None else f'{p:.3g}'}; HAC lags "
-              f"{out['hac'].get('bandwidth_lags', float('nan')):.1f}", flush=True)
+              f"{out['hac'].get('bandwidth_lags', float('nan')):.1f}; contact law "
+              f"{json.dumps(out['contact_law'])}", flush=True)
         _print_rows(path.stem, out["rows"])
         print(f"coverage_90.{path.stem}: model {np.mean([r['in_model'] for r in out['rows']]):.3f} "
               f"robust {np.mean([r['in_robust'] for r in out['rows']]):.3f}", flush=True)
@@ -204,10 +209,12 @@ def main() -> None:
     ap.add_argument("--timeout", type=float, default=1500.0, help="seconds per case")
     ap.add_argument("--saved", help="recompute the intervals of fits.py --save DIR's posteriors")
     ap.add_argument("--no-hac", action="store_true", help="with --saved: without the HAC term")
+    ap.add_argument("--no-contact-law", action="store_true",
+                    help="with --saved: without the contact law's error term")
     ap.add_argument("--one", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.saved:
-        main_saved(args.saved, args.case or [], not args.no_hac)
+        main_saved(args.saved, args.case or [], not args.no_hac, not args.no_contact_law)
         return
     if args.one:
         print(json.dumps(run_case(args.one, args.samples)))

@@ -353,6 +353,9 @@ def _contact_term(model, problem, mode, keep, Xr, m) -> dict | None:
         found = None if mode is None else contact_law.marginal_covariance(model, problem, mode)
         if found is None:
             return {"note": "not possible: no mode, or no least-squares curvature"}
+        if not found["pairs"]:  # no pair impacts in the record: the draws stay as they are
+            return {"pairs": [], "eta_sd": [], "width": found["width"], "widened": False,
+                    "largest": 1.0}
         sigma = np.cov(Xr[:, keep], rowvar=False).reshape(keep.size, keep.size)
         A, f = widening(sigma, sigma + found["cov"][np.ix_(keep, keep)])
     except (np.linalg.LinAlgError, ValueError, FloatingPointError) as err:  # a widening only
