@@ -9,19 +9,18 @@ residual statistic sees (the fit absorbs it into the unknowns the impact informs
 a ball hit a link, leaving white residuals). It is taken as a nuisance per contact pair whose
 restitution the scene fixes (a declared constant or the elastic default; a pair whose
 restitution is an unknown fits its own rebound): its restitution scaled by s = exp(eta),
-eta ~ N(0, ``WIDTH``^2), fixed at 0 in the fit. The mode's shift with eta follows from the
-implicit function theorem at the mode, d theta / d eta = -H^-1 J^T dr/deta = -C dr/deta
-(C = Cov_post(theta, r), the draws' statistical linearisation that the sandwich uses), so the
-term is
-
-    V_contact = sum over pairs of WIDTH^2 (C dr/deta) (C dr/deta)^T
-
-with dr/deta (the standardised residuals' derivative) by central differences of two rollouts
-per pair of the scene with the scale written into its restitution: no refit, no Jacobian in
-theta. A pair that never impacts (no contact, or only resting ones below the restitution
-threshold) has dr/deta = 0 exactly and adds nothing; a scene without contact pairs is not
-touched. This is the sensitivity form (type-B uncertainty of GUM): eta is not learned from
-the data, since the data cannot tell a wrong law from a wrong unknown.
+eta ~ N(0, ``WIDTH``^2), fixed at 0 in the fit. The reported covariance is the Laplace
+approximation's with eta free, at the fit's mode, marginalised over eta
+(``marginal_covariance``): the posterior covariance plus s M^-1 s^T, s = H^-1 J^T G the mode's
+shift per unit eta (implicit function theorem) and M eta's posterior precision given the
+unknowns. Where the data cannot tell a change of the law from a change of the unknowns, eta
+keeps its prior width and the term is the sensitivity form WIDTH^2 s s^T (GUM's type-B
+uncertainty); where they can, their own precision on eta sets it. J and G (the standardised
+residuals' derivatives in the unknowns and in eta) come from central differences of the scene
+with the scale written into each pair's restitution: one compile, two rollouts per pair and
+per unknown, no refit. A pair that never impacts (no contact, or only resting ones below the
+restitution threshold) has G = 0 exactly and adds nothing; a scene without contact pairs is
+not touched.
 """
 from __future__ import annotations
 
