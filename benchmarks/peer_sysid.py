@@ -23,10 +23,11 @@ corpus cases whose ``truth.json`` holds the generating MJCF) and ``cart_pole`` (
 MuJoCo, RK4 at 1 ms, a known 50 Hz force on the cart, 8 s of both encoders at 100 Hz).
 
 Prints per case (``name: value`` lines): ``physdsl_over_sysid_wall.CASE`` (whole command over
-whole script), ``wall_s``/``cpu_s`` of each, ``rms_sigma`` of each (residual RMS in noise
-units at its fit: equal accuracy), ``fit.CASE.UNKNOWN`` per tool (value [5%, 95%]) beside the
-truth, the load average; then a table. CPU seconds are those of the child process (the
-quiet-machine time on a shared machine).
+whole script) and ``..._cpu.CASE``; for TOOL in physdsl, sysid (and physdsl_warm with
+``--warm``): ``TOOL_wall_s.CASE``, ``TOOL_cpu_s.CASE``, ``TOOL_rms_sigma.CASE`` (residual RMS
+in noise units at its fit: equal accuracy), ``TOOL_fit.CASE.UNKNOWN: value [5%, 95%] truth
+t``; ``physdsl_stage_wall_s.CASE.STAGE`` (its progress lines); the load average; then a table.
+CPU seconds are those of the child process (the quiet-machine time on a shared machine).
 
 Run: .venv/bin/python benchmarks/peer_sysid.py [--case thrown_ball ...] [--timeout 1500]
 (needs ``pip install -e '.[benchmark]'`` for ``mujoco.sysid``'s own imports)
