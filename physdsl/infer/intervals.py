@@ -360,9 +360,11 @@ def _contact_term(model, problem, mode, keep, Xr, m) -> dict | None:
         A, f = widening(sigma, sigma + found["cov"][np.ix_(keep, keep)])
     except (np.linalg.LinAlgError, ValueError, FloatingPointError) as err:  # a widening only
         return {"note": f"not possible: {type(err).__name__}: {err}"}
-    Xr[:, keep] = m[keep] + (Xr[:, keep] - m[keep]) @ A.T
+    widened = bool(np.any(f > 1.0 + contact_law.NEGLIGIBLE))
+    if widened:
+        Xr[:, keep] = m[keep] + (Xr[:, keep] - m[keep]) @ A.T
     return {"pairs": found["pairs"], "eta_sd": found["eta_sd"], "width": found["width"],
-            "widened": bool(np.any(f > 1.0 + 1e-9)), "largest": float(f.max(initial=1.0))}
+            "widened": widened, "largest": float(f.max(initial=1.0))}
 
 
 def _block_check(problem, X, keep, Xr, m, mode, on_block=None) -> dict | None:
