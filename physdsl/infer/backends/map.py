@@ -269,10 +269,13 @@ MAIN_COMPONENT = 0.3  # |weight| of a coordinate in a unit eigen-direction worth
 def laplace_sqrt(problem, mode) -> np.ndarray:
     """A square root S of the Laplace covariance at ``mode`` (S S^T = inverse negative Hessian).
 
-    The Hessian is taken by central differences of the gradient. A direction along which the
-    log density is flat or curves upwards (a kink, e.g. a contact switching on, or an unknown
-    the data do not determine) has no Laplace approximation: LaplaceError names each such
-    direction by the unknowns that make it up, with its curvature.
+    The Hessian is taken by central differences of the gradient. Where those find a direction
+    flat or curving upwards, a least-squares scene takes the Gauss-Newton curvature instead
+    (``_gauss_newton_sqrt``): differences across a kink of the rollout (Coulomb friction
+    reversing, a contact switching) give no curvature, while the data's Fisher information
+    J^T J does. A direction flat in that too (an unknown the data do not determine) has no
+    Laplace approximation: LaplaceError names each such direction by the unknowns that make
+    it up, with its curvature.
     """
     vg = value_and_grad_fn(problem)
     mode = np.asarray(mode, dtype=float)
@@ -291,8 +294,11 @@ def laplace_sqrt(problem, mode) -> np.ndarray:
                            f"{int((~np.isfinite(H)).any(axis=0).sum())} of {d} coordinates: "
                            "no Laplace approximation", hint=LAPLACE_HINT)
     w, v = np.linalg.eigh(H)
-    bad = ~np.isfinite(w) | (w <= 1e-10 * max(float(np.max(np.abs(w), initial=0.0)), 1e-300))
+    bad = _not_concave(w)
     if bad.any() or not np.all(np.isfinite(v)):
+        fisher = _gauss_newton_sqrt(problem, mode)
+        if fisher is not None:
+            return fisher
         names = coordinate_names(problem)
         directions = [(float(w[k]), _components(v[:, k], names)) for k in np.flatnonzero(bad)]
         words = "; ".join(f"{_direction_words(c)} (curvature {cw:.3g})"
@@ -301,6 +307,28 @@ def laplace_sqrt(problem, mode) -> np.ndarray:
                            f"{int(bad.sum())} of {d} directions: no Laplace approximation. "
                            f"Flat or not concave along: {words}", hint=LAPLACE_HINT,
                            directions=directions)
+    return v / np.sqrt(w)
+
+
+def _not_concave(w) -> np.ndarray:
+    """Eigenvalues of a negative Hessian that are not positive enough to invert (flat within
+    1e-10 of the largest, curving up, or not finite)."""
+    return ~np.isfinite(w) | (w <= 1e-10 * max(float(np.max(np.abs(w), initial=0.0)), 1e-300))
+
+
+def _gauss_newton_sqrt(problem, mode) -> np.ndarray | None:
+    """S with S S^T the inverse Gauss-Newton curvature (J^T J plus the prior's Hessian) at
+    ``mode``; None where the likelihood is not least squares or that curvature is flat too."""
+    gn = gauss_newton_fn(problem)
+    if gn is None:
+        return None
+    H = np.asarray(gn(jnp.asarray(mode))[2], dtype=float)
+    H = 0.5 * (H + H.T)
+    if not np.all(np.isfinite(H)):
+        return None
+    w, v = np.linalg.eigh(H)
+    if _not_concave(w).any() or not np.all(np.isfinite(v)):
+        return None
     return v / np.sqrt(w)
 
 
