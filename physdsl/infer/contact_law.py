@@ -32,7 +32,7 @@ import numpy as np
 from numpyro.infer.util import constrain_fn
 
 from ..compile import Model
-from ..expr import Binary, Const, Ref, references
+from ..expr import Binary, Ref, references
 from ..scene import EffectUse
 from ..syntax.contact_sugar import SUGAR_PARAM
 from .base import cached, gauss_newton_fn
@@ -43,6 +43,7 @@ WIDTH = 0.05  # sd of log restitution per pair: how far a rebound from a soft, f
 # taken to be from the instantaneous Newton law with the scene's coefficient
 STEP = 1e-4  # central-difference step in log restitution: the rollout is smooth in it
 # (impacts are split at their time), and 1e-4 keeps float64 round-off near 1e-12
+WHITE_STEP = 1e-3  # central-difference step along the posterior's principal axes, in sd's
 PREFIX = "contact_law:"  # names of the scales in the augmented scene's values
 METHOD = "contact law"  # named in the summary where this term widened
 NEGLIGIBLE = 1e-3  # a widening by at most this (relative sd, along every direction) is none:
@@ -64,20 +65,19 @@ def scale_name(pair) -> str:
 def augmented_scene(scene, pairs):
     """``scene`` with each pair's restitution coefficient multiplied by its value
     ``scale_name(pair)`` (a restitution effect added with the elastic 1 where it has none)."""
+    by_key = {frozenset(p): p for p in pairs}
     effects, done = [], set()
     for use in scene.effects:
         key = frozenset(use.target)
-        if use.effect == "restitution" and tuple(sorted(key)) in {tuple(sorted(p)) for p in pairs}:
-            pair = next(p for p in pairs if frozenset(p) == key)
+        if use.effect == "restitution" and key in by_key:
             params = dict(use.params)
-            params[SUGAR_PARAM] = Binary("*", params[SUGAR_PARAM], Ref(scale_name(pair)))
+            params[SUGAR_PARAM] = Binary("*", params[SUGAR_PARAM], Ref(scale_name(by_key[key])))
             use = dataclasses.replace(use, params=params)
             done.add(key)
         effects.append(use)
-    for pair in pairs:
-        if frozenset(pair) not in done:
-            effects.append(EffectUse("restitution", tuple(pair),
-                                     {SUGAR_PARAM: Binary("*", Const(1.0), Ref(scale_name(pair)))}))
+    for key, pair in by_key.items():
+        if key not in done:  # elastic by default: the coefficient is the scale itself
+            effects.append(EffectUse("restitution", tuple(pair), {SUGAR_PARAM: Ref(scale_name(pair))}))
     return dataclasses.replace(scene, effects=tuple(effects))
 
 
@@ -107,8 +107,6 @@ def _central(f, x, directions, h: float) -> np.ndarray:
     ``directions`` (d, k) at ``x``, step ``h``."""
     return np.stack([(f(x + h * u) - f(x - h * u)) / (2.0 * h) for u in directions.T], axis=1)
 
-
-WHITE_STEP = 1e-3  # central-difference step along the posterior's principal axes, in sd's
 
 
 def marginal_covariance(model, problem, mode, width: float = WIDTH) -> dict | None:
