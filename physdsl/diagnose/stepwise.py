@@ -6,7 +6,10 @@ Alternatives come from the library, not from a list: laws that act on the same t
 one-sided scalar strength of the same sign and the same off value (on a body: linear and
 quadratic drag, buoyancy, Magnus; on a joint: viscous damping, Coulomb friction, torsion
 spring; on a contact pair: sliding friction and rolling resistance), and the same for a group
-or material-level target (``shoulder+elbow``, ``table,*``).
+or material-level target (``shoulder+elbow``, ``table,*``). A steady push on a body (a vector
+strength: ``constant_force``, ``wind``) has no source in the scene; on a body that touches
+something it also gets the resisting contact laws on the contacts the fit shows it touching
+(``contact_sources``: a steady force against the motion of a touching body comes from there).
 
 Each refit's scene is the current one edited as a value (``edits.Draft``): nothing is parsed,
 and the winner's text is printed only when ``refine`` writes it.
@@ -38,6 +41,7 @@ from ..errors import UsageError
 from ..infer.fit import quick_fit
 from .candidates import REQUIRES, Candidate, physics_candidates
 from .confirm import REFIT_FAILURES, strength_start
+from .contact_sources import contact_alternatives, steady_push, touching
 from .edits import Draft
 from .evidence import STRONG, laplace_log_evidence
 from .loo import combined_loo, tie_margin, unreliable
@@ -146,16 +150,29 @@ def drop_wins(c: Comparison) -> bool:
     return c.d_elpd > -c.margin and (c.d_log_z is None or c.d_log_z > 0)
 
 
-def alternatives(draft: Draft, cand: Candidate, bare: Draft | None = None) -> list[Candidate]:
+def alternatives(draft: Draft, cand: Candidate, bare: Draft | None = None,
+                 touched: set | None = None) -> list[Candidate]:
     """Other library laws at ``cand``'s target, as candidates of the scene without ``cand``
     (``bare``, made here when not given): a one-sided scalar strength of the same sign and off
-    value (see the module's docstring)."""
+    value (see the module's docstring). A steady push on a body (``contact_sources``) also
+    gets the resisting contact laws on the body's contacts, those in ``touched`` (the pairs in
+    contact in the fitted rollout; None: every pair of the body)."""
     lib = draft.scene.effect_library
     mine = lib[cand.name].strength
     bare = bare or draft.without_candidate(cand)
-    return [c for c in physics_candidates(bare.scene)
+    pool = physics_candidates(bare.scene)
+    same = [c for c in pool
             if c.kind == "effect" and c.target == cand.target and c.name != cand.name
             and _alike(lib[c.name].strength, mine)]
+    if _pushes(draft, cand):
+        same += contact_alternatives(bare.scene, cand.target[0], pool, touched)
+    return same
+
+
+def _pushes(draft: Draft, cand: Candidate) -> bool:
+    """``cand`` is a steady push on one body (``contact_sources.steady_push``)."""
+    return (cand.kind == "effect" and len(cand.target) == 1
+            and steady_push(draft.scene.effect_library[cand.name]))
 
 
 def _alike(s, mine) -> bool:
@@ -189,11 +206,14 @@ def reexamine(current: Judged, draft: Draft, revisable: list[Candidate], echo=No
     echo = echo or (lambda line: None)
     start = point_estimate(current.model, current.idata)
     wins, lines, ties = [], [], []
+    # the pairs in contact at the current fit: where a steady push's contact alternatives act
+    touched = touching(current.model, start) if any(_pushes(draft, c) for c in revisable) else None
     for cand in revisable:
         if _required(draft, cand):  # wind stays on drag: neither goes while the other is there
             continue
         bare = draft.without_candidate(cand)
-        options = [(None, bare.module)] + [(alt, bare.add(alt)) for alt in alternatives(draft, cand, bare)]
+        options = [(None, bare.module)] + [(alt, bare.add(alt))
+                                           for alt in alternatives(draft, cand, bare, touched)]
         for alt, module in options:
             what = (f"drop {_name(cand)}" if alt is None else f"swap {_name(cand)} → {_name(alt)}")
             echo(f"  refit: {what}")
