@@ -20,7 +20,9 @@ def register(app: typer.Typer) -> None:
                                     help="nuts | hmc | rmh | numpyro-nuts | map"),
         chains: int = typer.Option(4, "--chains", min=1, help="Chains (run vectorised)."),
         warmup: int = typer.Option(500, "--warmup", min=0, help="Warmup iterations per chain."),
-        samples: int = typer.Option(500, "--samples", min=1, help="Draws per chain."),
+        samples: Optional[int] = typer.Option(None, "--samples", min=1,
+                                              help="Draws per chain (default 500; 250 with "
+                                                   "--backend map, whose draws are independent)."),
         seed: int = typer.Option(0, "--seed", help="Random seed (runs are reproducible)."),
         target_accept: float = typer.Option(0.8, "--target-accept", min=0.05, max=0.999,
                                             help="Target acceptance rate of HMC/NUTS adaptation."),

@@ -31,7 +31,7 @@ class Settings:
 
     chains: int = 4
     warmup: int = 500
-    samples: int = 500
+    samples: int | None = None  # draws per chain; None: the backend's ``default_samples``
     seed: int = 0
     target_accept: float = 0.8
     max_tree_depth: int = 8
@@ -76,6 +76,7 @@ class Backend:
 
     name: str = ""
     uses_gradient: bool = True
+    default_samples: int = 500  # draws per chain where the user gives none
 
     def warmup(self, problem: Problem, positions: jax.Array, key, settings: Settings,
                on_block=None):

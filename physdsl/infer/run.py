@@ -52,6 +52,8 @@ def infer(model, backend: str = "nuts", settings: Settings | None = None, outdir
     ``init.with_init``). SIGINT/SIGTERM raise ``interrupt.Interrupted`` within seconds,
     leaving a checkpoint that ``resume=True`` continues exactly."""
     settings = replace(settings or Settings(), **overrides)
+    if settings.samples is None:
+        settings = replace(settings, samples=get_backend(backend).default_samples)
     if init:
         if positions is not None:
             raise UsageError("start values (init) and start positions (positions) both given",

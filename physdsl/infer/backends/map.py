@@ -402,6 +402,9 @@ class MAP(Backend):
                 {"log_density_at_mode": lps})
 
     paced = False  # independent draws in one cheap call: no need to cut them by time
+    default_samples = 250  # independent draws: 4 x 250 give the effective sample size that
+    # MCMC needs 2000 correlated draws for (5-95% quantiles to ~0.07 sd), and each costs a
+    # rollout in the posterior pass (chain_hit: 65 of its 176 s with 4 x 500)
 
     def sample(self, problem, states, params, key, n, settings, start=0):
         states = jnp.asarray(states)
