@@ -32,7 +32,7 @@ from .loo import loo_reliability
 from .quality import fit_quality
 from .rank import diagnose
 from .report import html_page, new_figure, save_png
-from .stepwise import judge, parse, reexamine
+from .stepwise import judge, parse, reexamine, sources_unexamined
 from .workflow import check_model, point_estimate
 
 
@@ -211,9 +211,11 @@ def _add_winner(loop: _Loop, k: int, draft: Draft, model, now, w) -> Path:
     new = w.refit.draft if w.refit is not None else draft.with_candidate(cand)
     nxt = _write_round(loop.out, k + 1, new.text(), loop.user_scene)
     # chosen against these effects; a group with a strength per joint is one effect per
-    # joint from now on (each may be swapped or dropped on its own), a shared one stays one
+    # joint from now on (each may be swapped or dropped on its own), a shared one stays one;
+    # a steady push on a touching body is re-examined next round against its contact sources
     for part in ([cand] if cand.shared else cand.parts()) if cand.kind == "effect" else ():
-        loop.revisable[part.key] = (part, _effects(new.scene))
+        fresh = w.refit is not None and sources_unexamined(new, part, w.refit.model, loop.start)
+        loop.revisable[part.key] = (part, None if fresh else _effects(new.scene))
     loop.echo(f"round {k}: added `{w.snippet.strip()}` -> {nxt}")
     return nxt
 

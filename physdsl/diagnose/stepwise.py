@@ -169,6 +169,21 @@ def alternatives(draft: Draft, cand: Candidate, bare: Draft | None = None,
     return same
 
 
+def sources_unexamined(draft: Draft, cand: Candidate, model, values) -> bool:
+    """``cand``, just added (``draft``: the scene with it; ``model`` fitted at ``values``), is
+    a steady push on a body the fit shows touching a pair where a resisting contact law could
+    act (``contact_sources``). The diagnosis that chose it ranked those laws at other targets
+    and refitted only its best few, so the next round re-examines the push against them."""
+    if not _pushes(draft, cand):
+        return False
+    touched = [p for p in touching(model, values) if cand.target[0] in p]
+    if not touched:  # free flight (two_effects_throw): nothing to examine
+        return False
+    bare = draft.without_candidate(cand)
+    return bool(contact_alternatives(bare.scene, cand.target[0], physics_candidates(bare.scene),
+                                     set(touched)))
+
+
 def _pushes(draft: Draft, cand: Candidate) -> bool:
     """``cand`` is a steady push on one body (``contact_sources.steady_push``)."""
     return (cand.kind == "effect" and len(cand.target) == 1

@@ -9,7 +9,7 @@ from physdsl.compile import Model
 from physdsl.diagnose.candidates import Candidate
 from physdsl.diagnose.contact_sources import touching
 from physdsl.diagnose.edits import Draft, load_text, with_effect
-from physdsl.diagnose.stepwise import alternatives
+from physdsl.diagnose.stepwise import alternatives, sources_unexamined
 
 from .conftest import load_scene, write_csv
 
@@ -44,12 +44,16 @@ def _pushed(tmp_path, height: str, vz: float):
     model = Model(pushed)
     values = {u: np.zeros(3) for u in model.unknown_names}
     values["ball.velocity"] = np.array([1.5, 0.0, vz])
-    return Draft.of(pushed), touching(model, values)
+    draft = Draft.of(pushed)
+    # added by the loop: re-examined next round where it touches something (the diagnosis
+    # that chose it ranked the contact laws at other targets)
+    return draft, touching(model, values), sources_unexamined(draft, PUSH, model, values)
 
 
 def test_a_push_on_a_rolling_ball_has_the_contact_laws_of_its_touched_pair(tmp_path):
-    draft, touched = _pushed(tmp_path, "5 cm", 0.0)
+    draft, touched, due = _pushed(tmp_path, "5 cm", 0.0)
     assert touched == {frozenset(("floor", "ball"))}  # on the floor, never at the wall
+    assert due
     keys = {c.key for c in alternatives(draft, PUSH, touched=touched)}
     assert {f"{law}@floor,ball" for law in CONTACT_LAWS} <= keys
     assert not any("wall" in k for k in keys)  # a pair never touched cannot make the force
@@ -69,6 +73,6 @@ def test_a_push_on_a_rolling_ball_has_the_contact_laws_of_its_touched_pair(tmp_p
 
 
 def test_a_push_in_free_flight_has_no_contact_alternative(tmp_path):
-    draft, touched = _pushed(tmp_path, "2 m", 3.0)  # thrown up, lands long after 0.3 s
-    assert touched == set()
+    draft, touched, due = _pushed(tmp_path, "2 m", 3.0)  # thrown up, lands long after 0.3 s
+    assert touched == set() and not due
     assert not any(c.name in CONTACT_LAWS for c in alternatives(draft, PUSH, touched=touched))
