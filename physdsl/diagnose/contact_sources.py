@@ -54,7 +54,8 @@ def contact_alternatives(scene: Scene, body: str, pool: list[Candidate],
     ``body`` in ``scene`` (which lacks the push): of ``pool`` (its ``physics_candidates``)
     those on a pair of ``body`` in ``touched`` (None: every pair counts) and the material
     candidates of a fixed body with such a pair; and, where ``body`` has two or more touched
-    pairs lacking a law, that law on all of its pairs with one shared coefficient."""
+    pairs lacking one of those laws, that law on all of its pairs with one shared
+    coefficient."""
     lib = scene.effect_library
 
     def on(pair) -> bool:
@@ -67,7 +68,8 @@ def contact_alternatives(scene: Scene, body: str, pool: list[Candidate],
         pairs = material_pairs(scene, c.name, c.target[0]) if c.material else [c.target]
         if any(on(p) for p in pairs):
             out.append(c)
-    for name in sorted(n for n, d in lib.items() if resisting(d)):
+    # laws the library proposes on a pair (not a damper: it needs a spring's anchors)
+    for name in sorted({c.name for c in out if not c.material}):
         if sum(on(p) for p in material_pairs(scene, name, body)) >= 2:
             out.append(Candidate("effect", name, (body, ANY)))
     return out

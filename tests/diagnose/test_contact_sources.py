@@ -62,6 +62,7 @@ def test_a_push_on_a_rolling_ball_has_the_contact_laws_of_its_touched_pair(tmp_p
     # law on all of the ball's pairs with one coefficient (its surface) is offered too
     keys = {c.key for c in alternatives(draft, PUSH)}
     assert {f"{law}@{p}" for law in CONTACT_LAWS for p in ("floor,ball", "wall,ball", "ball,*")} <= keys
+    assert not any(k.startswith(("damper", "restitution")) for k in keys)  # no spring, no impact law
     # the ball-wide law is one shared param on both pairs; taking the push out keeps the rest
     wide = Candidate("effect", "rolling_resistance", ("ball", "*"))
     bare = draft.without_candidate(PUSH)
