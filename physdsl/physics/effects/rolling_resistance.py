@@ -15,30 +15,10 @@ above that change is unchanged to a relative (eps / |w|)^2 / 2.
 import jax.numpy as jnp
 
 from ..rows import take
+from ..step_width import step_inverse_inertia, step_width
 from .base import register, wrenches, zero_load
 
 EPS = 1e-3  # rad/s
-
-
-def step_inverse_inertia(model, prm, bodies):
-    """Sum over ``bodies`` of an upper bound of the inverse principal moments (1/kg m^2), so
-    of the angular-velocity change per unit torque impulse on their relative rotation (0 for
-    static bodies and for bodies with no rotational inertia). Closed forms, no eigen-solver in
-    the step: the smallest moment is at least its Gershgorin bound (exact for the primitive
-    shapes' diagonal inertia) and at least 4 det / trace^2 (det over the larger two's mean
-    squared: a mesh's full inertia)."""
-    total = jnp.zeros((), prm["inertia"].dtype)
-    for b in bodies:
-        if not model.ancestors_dofs(b):
-            continue
-        inertia = prm["inertia"][b]
-        off = jnp.sum(jnp.abs(inertia), 1) - jnp.abs(jnp.diagonal(inertia))
-        trace = jnp.trace(inertia)
-        det = jnp.dot(inertia[0], jnp.cross(inertia[1], inertia[2]))
-        least = jnp.maximum(jnp.min(jnp.diagonal(inertia) - off),
-                            4.0 * det / jnp.where(trace > 0, trace, 1.0) ** 2)
-        total = total + jnp.where(least > 0, 1.0 / jnp.where(least > 0, least, 1.0), 0.0)
-    return total
 
 
 @register("rolling_resistance", ("pair",))
@@ -51,8 +31,7 @@ def rolling_resistance(model, site, p, ctx):
     w = ctx.kin.ang[a] - ctx.kin.ang[b]
     wh = w[None, :] - jnp.sum(n * w[None, :], -1, keepdims=True) * n  # (K, 3) in-plane part
     h = model.dt / model.substeps
-    step = h * p["coefficient"] * jnp.sum(N) * step_inverse_inertia(model, ctx.prm, (a, b))
-    eps2 = EPS**2 + step**2
-    T = -p["coefficient"] * N[:, None] * wh / jnp.sqrt(jnp.sum(wh * wh, -1, keepdims=True) + eps2)
+    eps = step_width(EPS, h, p["coefficient"] * jnp.sum(N), step_inverse_inertia(model, ctx.prm, (a, b)))
+    T = -p["coefficient"] * N[:, None] * wh / jnp.sqrt(jnp.sum(wh * wh, -1, keepdims=True) + eps**2)
     T = jnp.sum(T, 0)
     return wrenches(model, ctx, (a, b), jnp.zeros((2, 3)), torques=jnp.stack([T, -T]))
