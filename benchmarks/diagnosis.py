@@ -215,14 +215,16 @@ def run_refine(name: str, seed: int, folder: Path | None = None) -> dict:
                         echo=lambda line: print(f"[{name}] {line}", file=sys.stderr, flush=True))
         wall = time.perf_counter() - t0
         last = rounds[-1]
-        effects = {(e.effect, tuple(e.target)) for e in load(last.scene).effects}
+        final = load(last.scene)
+        effects = {(e.effect, tuple(e.target)) for e in final.effects}
         with (Path(last.scene).parent / "fit" / "summary.csv").open() as f:
             summary = {r["name"]: r for r in csv.DictReader(f)}
     refit = {}
     for key, value in truth.get("parameters", {}).items():
         if "@" not in key:
             continue
-        rows = [summary[k] for k in summary if k == key or k.startswith(key + "[")]
+        name = _shared_param(final, key) or key
+        rows = [summary[k] for k in summary if k == name or k.startswith(name + "[")]
         refit[key] = {"truth": value, "mean": [float(r["mean"]) for r in rows] or None,
                       "q5": [float(r["q5"]) for r in rows] or None,
                       "q95": [float(r["q95"]) for r in rows] or None}
@@ -237,6 +239,17 @@ def run_refine(name: str, seed: int, folder: Path | None = None) -> dict:
         "final_effects": sorted(f"{e}@{','.join(t)}" for e, t in effects if e != "gravity"),
         "refit": refit, "final_verdict": last.verdict,
     }
+
+
+def _shared_param(scene, key: str) -> str | None:
+    """The one ``param`` an effect's strength ``effect@target.param`` is written as in
+    ``scene`` (a material-level or body-wide candidate: ``ball_rolling_resistance``), else
+    None (the strength is its own unknown, or the effect is not in the scene)."""
+    from physdsl.expr import references
+
+    use, _, param = key.rpartition(".")
+    refs = [references(e.params[param]) for e in scene.effects if e.key == use and param in e.params]
+    return next(iter(refs[0])) if refs and len(refs[0]) == 1 else None
 
 
 # (module, attribute, stage): the functions timed by ``--profile``. Inclusive: a refit holds
