@@ -36,6 +36,9 @@ class Contacts(NamedTuple):
     valid: jnp.ndarray | None = None  # (C,) bool, candidates that exist whatever their gap
     point_a: jnp.ndarray | None = None  # (C, 3) world contact point on a
     point_b: jnp.ndarray | None = None  # (C, 3) world contact point on b
+    # (C,) trace of the tangential block of J M^-1 J^T in closed form (free bodies only): an
+    # upper bound of the inverse effective mass friction meets
+    inv_mass_t: jnp.ndarray | None = None
 
 
 SLIP_ALIGN = 1e-3  # m/s: slip speeds well above this turn the friction pyramid onto the slip
@@ -80,6 +83,7 @@ def detect_all(model: PhysicsModel, prm: dict, kin: Kin, v=None) -> Contacts:
     e = jnp.ones(C)
     free = model.free_bodies is not None
     inv_m = jnp.zeros(C) if free else None
+    inv_t = jnp.zeros(C) if free else None
     pt_a, pt_b = jnp.zeros((C, 3)), jnp.zeros((C, 3))
     groups: dict = {}
     for pair in model.pairs:
@@ -102,6 +106,9 @@ def detect_all(model: PhysicsModel, prm: dict, kin: Kin, v=None) -> Contacts:
             kb_ = np.asarray([p.b for p in pairs])
             inv_m = inv_m.at[rows].set(_inv_mass(model, prm, kin, ka_, cp.point_a, cp.normal)
                                        + _inv_mass(model, prm, kin, kb_, cp.point_b, cp.normal))
+            inv_t = inv_t.at[rows].set(sum(
+                _inv_mass(model, prm, kin, ka_, cp.point_a, t) + _inv_mass(model, prm, kin, kb_, cp.point_b, t)
+                for t in jax.vmap(jax.vmap(tangents))(cp.normal)))
         fr = jnp.stack([jnp.asarray(prm["effects"][p.friction]["coefficient"], dtype=float)
                         if p.friction is not None else jnp.asarray(0.0) for p in pairs])
         re = jnp.stack([jnp.asarray(prm["effects"][p.restitution]["coefficient"], dtype=float)
@@ -119,7 +126,7 @@ def detect_all(model: PhysicsModel, prm: dict, kin: Kin, v=None) -> Contacts:
         T = jnp.zeros((C, 0, 3), normal.dtype)
     Jt = jnp.einsum("cfk,ckn->cfn", T, J)
     return Contacts(dist, normal, valid & (dist < cm.contact_margin), J, Jn, Jt, mu, e, inv_m,
-                    valid, pt_a, pt_b)
+                    valid, pt_a, pt_b, inv_t)
 
 
 def closing_within(con: Contacts, v_free, h) -> Contacts:
@@ -142,20 +149,28 @@ def _inv_mass(model: PhysicsModel, prm: dict, kin: Kin, bodies, points, normal):
     return inv_m[:, None] + jnp.sum(u * mv(inv_i[:, None], u), -1)
 
 
-def compliant_tau(model: PhysicsModel, con: Contacts, M, v):
+def compliant_tau(model: PhysicsModel, con: Contacts, M, v, h=None):
     """Generalized contact forces of the compliant model and the normal force per row.
 
-    The effective mass per row comes from ``con.inv_mass`` when set (free bodies: M is not
-    needed, pass None), else from one solve with M."""
+    The effective masses per row come from ``con.inv_mass``/``inv_mass_t`` when set (free
+    bodies: M is not needed, pass None), else from one solve with M. ``h``: the explicit step
+    the forces serve, which widens the friction's smoothing (``friction_step``)."""
     vrel = jnp.einsum("ckn,n->ck", con.J, v)
     vn = jnp.sum(vrel * con.normal, -1)
     vt = vrel - vn[:, None] * con.normal
     if con.inv_mass is not None:
-        inv_meff = con.inv_mass
+        inv_meff, inv_t = con.inv_mass, con.inv_mass_t
+    elif all(p.friction is None for p in model.pairs):
+        inv_meff, inv_t = jnp.sum(con.Jn * jnp.linalg.solve(M, con.Jn.T).T, -1), None
     else:
-        inv_meff = jnp.sum(con.Jn * jnp.linalg.solve(M, con.Jn.T).T, -1)
+        C, _, nv = con.J.shape
+        W = jnp.einsum("ckn,cln->ckl", con.J,
+                       jnp.linalg.solve(M, con.J.reshape(3 * C, nv).T).T.reshape(C, 3, nv))
+        inv_meff = jnp.einsum("ck,ckl,cl->c", con.normal, W, con.normal)  # n J M^-1 J^T n
+        inv_t = jnp.trace(W, axis1=1, axis2=2) - inv_meff
     meff = 1.0 / jnp.where(inv_meff > 0, inv_meff, 1.0)
-    fn, ft = cm.compliant_forces(con.dist, vn, vt, con.mu, con.e, meff)
+    fn, ft = cm.compliant_forces(con.dist, vn, vt, con.mu, con.e, meff,
+                                 step=friction_step(model, con, h, inv_t))
     fn = jnp.where(con.active, fn, 0.0)
     ft = jnp.where(con.active[:, None], ft, 0.0)
     F = fn[:, None] * con.normal + ft  # world force on a (and -F on b) at the contact
@@ -163,11 +178,22 @@ def compliant_tau(model: PhysicsModel, con: Contacts, M, v):
     return tau, fn
 
 
-def compliant_load(model: PhysicsModel, kin: Kin, con: Contacts):
+def friction_step(model: PhysicsModel, con: Contacts, h, inv_mass_t):
+    """What widens compliant friction's smoothing for an explicit step of length ``h`` (None:
+    nothing; nor without friction anywhere)."""
+    if h is None or inv_mass_t is None or all(p.friction is None for p in model.pairs):
+        return None
+    pair = np.zeros(model.ncon, int)
+    for k, p in enumerate(model.pairs):
+        pair[list(p.rows)] = k
+    return cm.FrictionStep(h, inv_mass_t, con.active, pair)
+
+
+def compliant_load(model: PhysicsModel, kin: Kin, con: Contacts, h=None):
     """Free-body scenes: the compliant contact forces as a Load (each contact's force and its
     moment about the centre of mass, on a, and their opposite on b) and the normal force per
     row, from the bodies' own velocities: no (C, 3, nv) contact Jacobian, whose size grows as
-    pairs x dofs (the same forces as ``compliant_tau``, to rounding)."""
+    pairs x dofs (the same forces as ``compliant_tau``, to rounding). ``h``: as there."""
     ra, rb = _row_bodies(model)
     ca, cb = kin.com[ra], kin.com[rb]
     vel = lambda r, p, c: kin.vcom[r] + jnp.cross(kin.ang[r], p - c)  # noqa: E731
@@ -175,7 +201,8 @@ def compliant_load(model: PhysicsModel, kin: Kin, con: Contacts):
     vn = jnp.sum(vrel * con.normal, -1)
     vt = vrel - vn[:, None] * con.normal
     meff = 1.0 / jnp.where(con.inv_mass > 0, con.inv_mass, 1.0)
-    fn, ft = cm.compliant_forces(con.dist, vn, vt, con.mu, con.e, meff)
+    fn, ft = cm.compliant_forces(con.dist, vn, vt, con.mu, con.e, meff,
+                                 step=friction_step(model, con, h, con.inv_mass_t))
     fn = jnp.where(con.active, fn, 0.0)
     F = fn[:, None] * con.normal + jnp.where(con.active[:, None], ft, 0.0)
     B = model.nbody

@@ -199,10 +199,10 @@ def _compliant_step(model, prm, state, t, h, forward_only=False):
     def contact(o):
         prm, q, v, kin, con, load = o
         if con.inv_mass is not None:  # free bodies: forces on the bodies, no contact Jacobian
-            extra, cf = cs.compliant_load(model, kin, con)
+            extra, cf = cs.compliant_load(model, kin, con, h)
             v_next = v + h * accel(model, prm, kin, load + extra)
         else:
-            tau, cf = cs.compliant_tau(model, con, joint_mass_matrix(model, prm, kin), v)
+            tau, cf = cs.compliant_tau(model, con, joint_mass_matrix(model, prm, kin), v, h)
             v_next = v + h * accel(model, prm, kin, load, tau)
         return State(integrate_q(model, q, v_next, h), v_next, cf, con.normal)
 

@@ -6,7 +6,8 @@
   ``lcp.py``);
 - ``compliant_forces``: a smooth penalty spring-damper alternative (``compliant.py``).
 """
-from .compliant import COMPLIANT_SETTINGS, CompliantSettings, compliant_forces, damping_ratio
+from .compliant import (COMPLIANT_SETTINGS, CompliantSettings, FrictionStep, compliant_forces,
+                        damping_ratio)
 from .detect import PAIRS, SHAPE_CODES, ContactPoints, contact_count, contact_margin, detect
 from .lcp import IP_SETTINGS, IPSettings, lcp_residual, lcp_solve
 from .step import (LCP_SETTINGS, ContactLCP, ContactStep, Impacts, LCPSettings, build_lcp,
@@ -14,6 +15,7 @@ from .step import (LCP_SETTINGS, ContactLCP, ContactStep, Impacts, LCPSettings, 
 
 __all__ = [
     "COMPLIANT_SETTINGS", "CompliantSettings", "ContactLCP", "ContactPoints", "ContactStep",
+    "FrictionStep",
     "IPSettings", "Impacts", "impact_time", "impacts",
     "IP_SETTINGS", "LCPSettings", "LCP_SETTINGS", "PAIRS", "SHAPE_CODES", "build_lcp",
     "compliant_forces", "contact_count", "contact_margin", "damping_ratio", "detect",

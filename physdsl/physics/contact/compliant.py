@@ -16,7 +16,12 @@ coefficient of restitution is (Schwager & Poeschel 2007, derived in ``_log_resti
 
 and ``damping_ratio`` inverts it, so the model rebounds with restitution e (up to the gap
 smoothing and gravity acting during the short contact). Friction: ft = -mu fn vt / sqrt(|vt|^2
-+ eps^2), i.e. Coulomb with a viscous core of width eps; |ft| <= mu fn always.
++ eps^2), i.e. Coulomb with a viscous core of width eps; |ft| <= mu fn always. That core is a
+damper of rate mu fn w / eps (w: the tangential inverse effective mass), integrated explicitly:
+where one step of it more than stops the slip, the slip flips sign every step (a ball rolling
+or a box at rest, mu 0.2-0.5, 1 ms steps: 99 flips in 99 steps; a box's d x / d v0 came out
+-1.9 where finite differences give 0.10). With a ``FrictionStep``, eps is widened to the slip
+one explicit step of the pair's whole friction makes (``step_width``).
 """
 from __future__ import annotations
 
@@ -24,6 +29,9 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
+
+from ..step_width import step_width
 
 
 class CompliantSettings(NamedTuple):
@@ -35,6 +43,18 @@ class CompliantSettings(NamedTuple):
 
 
 COMPLIANT_SETTINGS = CompliantSettings()
+
+
+class FrictionStep(NamedTuple):
+    """What widens the friction's eps for an explicit step: step length h (s), an upper bound
+    of each contact's tangential inverse effective mass (C,) (1/kg), which contacts carry
+    force (C,) bool, and each contact's pair (C,) (static ints: the rows of a pair add their
+    friction, as they act on the same bodies)."""
+
+    h: float
+    inv_mass_t: jnp.ndarray
+    active: jnp.ndarray
+    pair: np.ndarray
 
 
 def _log_restitution(zeta):
@@ -67,11 +87,13 @@ def damping_ratio(e):
     return jnp.maximum(z0 - (_log_restitution(z0) - target) / slope, 0.0)
 
 
-def compliant_forces(dist, vn, vt, mu, e, mass_eff, settings: CompliantSettings = COMPLIANT_SETTINGS):
+def compliant_forces(dist, vn, vt, mu, e, mass_eff, settings: CompliantSettings = COMPLIANT_SETTINGS,
+                     step: FrictionStep | None = None):
     """Normal force magnitudes fn (C,) and friction forces ft (C,3) of C contacts.
 
     dist (C,) signed gap; vn (C,) normal relative velocity (positive separating); vt (C,3)
-    tangential relative velocity; mu, e, mass_eff (C,) friction, restitution, effective mass.
+    tangential relative velocity; mu, e, mass_eff (C,) friction, restitution, effective mass;
+    ``step``: widen the friction's eps for an explicit step (see the module).
     """
     s = settings.smoothing
     omega = jnp.pi / settings.time_constant
@@ -80,6 +102,11 @@ def compliant_forces(dist, vn, vt, mu, e, mass_eff, settings: CompliantSettings 
     x = s * jax.nn.softplus(-dist / s)
     touching = jax.nn.sigmoid(-dist / s)
     fn = jnp.maximum(k * x - c * vn * touching, 0.0)
-    speed = jnp.sqrt(jnp.sum(vt * vt, axis=-1) + settings.friction_eps ** 2)
+    eps = settings.friction_eps
+    if step is not None:
+        load = jnp.where(step.active, mu * fn, 0.0)
+        load = jax.ops.segment_sum(load, step.pair, num_segments=int(np.max(step.pair)) + 1)[step.pair]
+        eps = step_width(eps, step.h, load, step.inv_mass_t)
+    speed = jnp.sqrt(jnp.sum(vt * vt, axis=-1) + eps ** 2)
     ft = -(mu * fn / speed)[:, None] * vt
     return fn, ft
