@@ -111,8 +111,26 @@ def by_log_evidence(confirmed: list[Ranked]) -> list[Ranked]:
     posterior) ΔELPD does not compare the candidates; on the double pendulum the two refits'
     -3864 and -3833 would have put friction on both hinges before friction on the elbow alone,
     whose evidence was 2.8 higher (P 0.94)."""
-    return sorted(confirmed, key=lambda r: (r.log_evidence is None, -(r.log_evidence or 0.0),
-                                            -(r.delta_lfo or 0.0)))
+    ordered = sorted(confirmed, key=lambda r: (r.log_evidence is None, -(r.log_evidence or 0.0),
+                                               -(r.delta_lfo or 0.0)))
+    better = _outpredicts_leader(ordered)
+    return ordered if better is None else [better] + [r for r in ordered if r is not better]
+
+
+def _outpredicts_leader(ordered: list[Ranked]) -> Ranked | None:
+    """The refit without evidence (its Laplace step failed) whose reliable PSIS-LOO beats the
+    evidence leader's ΔELPD beyond the tie margin, best first; None if there is none. A missing
+    evidence is no evidence against a law: an unreliable PSIS-LOO is optimistic (its heavy-tailed
+    weights miss the points the fit leans on), so a reliable ΔELPD above even that one is a
+    better prediction (billiards: sliding friction on the table 1.51σ, ΔELPD +39657, evidence
+    n/a, had gone last behind quadratic drag on a ball at 5.38σ, +29594 unreliable, C_d 100)."""
+    lead = ordered[0] if ordered else None
+    if lead is None or lead.log_evidence is None or lead.delta_elpd is None:
+        return None
+    beat = [r for r in ordered if r.log_evidence is None and r.elpd_reliable
+            and r.delta_elpd is not None
+            and r.delta_elpd - lead.delta_elpd > tie_margin(lead.elpd_points, r.elpd_points)]
+    return max(beat, key=lambda r: r.delta_elpd, default=None)
 
 
 def _evidence_tied(a: Ranked, b: Ranked) -> bool:

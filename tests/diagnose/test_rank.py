@@ -223,6 +223,28 @@ def test_candidates_whose_evidence_ties_the_winner_share_its_rank():
                                                  ("quadratic_drag", 1), ("magnus", 2)]
 
 
+def test_a_refit_without_evidence_that_outpredicts_the_evidence_leader_goes_first():
+    """Where one refit's PSIS-LOO is unreliable the order is by Laplace evidence, but a refit
+    whose evidence is n/a and whose reliable ΔELPD beats the leader's beyond the tie margin goes
+    first (billiards: sliding friction on the table behind quadratic drag on a ball); within the
+    margin, or with an unreliable ΔELPD of its own, it stays behind."""
+    from physdsl.diagnose.diagnosis import Ranked
+    from physdsl.diagnose.ordering import order_by_evidence
+
+    def row(effect, target, elpd, log_z, reliable):
+        r = Ranked(0, "effect", effect, target, 1.0, 0.1, 1, confirmed=True)
+        r.delta_elpd, r.log_evidence, r.elpd_reliable = elpd, log_z, reliable
+        return r
+
+    drag = row("quadratic_drag", "object", 29594.3, -12254.0, False)
+    for elpd, reliable, first in ((39656.8, True, "contact_friction"),
+                                  (29596.0, True, "quadratic_drag"),
+                                  (39656.8, False, "quadratic_drag")):
+        friction = row("contact_friction", "table,*", elpd, None, reliable)
+        spin = row("restitution", "cue,object", 37779.3, None, False)
+        assert order_by_evidence([drag, spin, friction])[0].effect == first, (elpd, reliable)
+
+
 def test_a_gap_within_twice_its_standard_error_is_a_tie():
     """ΔLFO 10 apart: a tie where the pointwise differences scatter (se of their sum ~8), an
     order where every point favours the winner alike (se ~0); ΔELPD alike in both."""
