@@ -39,12 +39,12 @@ def _hits_the_chain(model, values) -> float:
     return float(np.max(np.abs(np.asarray(rollout.joint_pos)[:, j])))
 
 
-def _check_fit(model, best, truth, rms_max):
+def _check_fit(model, best, truth, rms_max, start_atol=0.01):
     assert best["rms_sigma"] <= rms_max, best
     v = best["values"]
     assert abs(v["speed"] - truth["speed"]) < 0.1
     assert abs(v["launch_angle"] - truth["launch_angle"]) < np.radians(2)
-    np.testing.assert_allclose(v["ball.position"], truth["ball.position"], atol=0.01)
+    np.testing.assert_allclose(v["ball.position"], truth["ball.position"], atol=start_atol)
     assert _hits_the_chain(model, v) > 0.3  # the data: the lowest link swings past 1 rad
 
 
@@ -66,24 +66,29 @@ def test_the_default_start_finds_the_collision_basin(tmp_path):
 
 
 @pytest.mark.slow
-def test_map_starts_fit_the_whole_recording():
+@pytest.mark.parametrize("folder, rms_max, start_atol", [("", 1.2, 0.01), ("damped_light", 1.5, 0.03)])
+def test_map_starts_fit_the_whole_recording(folder, rms_max, start_atol):
     """MAP's multistart (the default four starts, 500 steps each) on the naive scene: at most
-    1.2σ where the chain has no damping (measured 1.01σ; the rollout at the truth is 1.075σ)."""
+    1.2σ where the chain has no damping (measured 1.01σ; the rollout at the truth is 1.075σ),
+    1.5σ where its hinges are slightly damped (``damped_light``: 3e-5 N m s/rad, which the
+    naive scene lacks: a small unmodelled effect must not lose the collision basin; measured
+    1.30σ, the ball's start 1.04 cm off, as the fit trades the ball's track against the
+    chain's, so within the few cm scene.md gives, not the 1 cm of the right model)."""
     from physdsl.compile import compile as compile_phys
     from physdsl.infer.base import Settings
     from physdsl.infer.run import starts
 
-    truth = json.loads((CHAIN / "truth.json").read_text())["unknowns"]
+    truth = json.loads((CHAIN / folder / "truth.json").read_text())["unknowns"]
     settings = Settings()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        model = compile_phys(CHAIN / "scene.phys")
+        model = compile_phys(CHAIN / folder / "scene.phys")
         basins: list[dict] = []
         starts(model, settings, max(settings.warmup, 50), basins)
     best = basins[0]
     assert "data" in best["starts"]
     assert all(b["log_density"] is None or b["log_density"] <= best["log_density"] for b in basins)
-    _check_fit(model, best, truth, rms_max=1.2)
+    _check_fit(model, best, truth, rms_max=rms_max, start_atol=start_atol)
 
 
 @pytest.mark.slow

@@ -70,6 +70,9 @@ GENERATED = {
     "chain_hit_damped": (EXAMPLES / "chain_hit" / "damped", chain_hit.simulate,
                          {h: "sigma_angle_rad" for h in chain_hit.HINGES}, "sigma_position_m",
                          ("hinge_damping_N_m_s_per_rad", 0.0)),
+    "chain_hit_damped_light": (EXAMPLES / "chain_hit" / "damped_light", chain_hit.simulate,
+                               {h: "sigma_angle_rad" for h in chain_hit.HINGES}, "sigma_position_m",
+                               ("hinge_damping_N_m_s_per_rad", 0.0)),
     "dh_arm": (EXAMPLES / "dh_arm", _dh_arm, {j: "sigma_angle_rad" for j in dh_arm.JOINTS}, "sigma_position_m",
                ("payload_mass_kg", 0.33)),
 }
