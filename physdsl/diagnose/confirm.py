@@ -170,7 +170,7 @@ def apply(base: Baseline, r: Ranked, out: dict, draft: Draft, new=None) -> None:
     if not out.get("elpd_reliable", True):  # its draws cannot say: the evidence decides
         r.confirmed = refit_task.confirmed(out, base.log_z())
         r.note = "; ".join(filter(None, [r.note, "PSIS-LOO unreliable for this refit (Pareto k > 0.7 "
-                                         "at many points): judged on the Laplace evidence"]))
+                                         "at many points): judged on the Laplace evidence (n/a: on leave-future-out)"]))
     r.snippet = snippet(base.text(), draft.text())
 
 

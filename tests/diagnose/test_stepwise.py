@@ -142,6 +142,15 @@ def test_a_refit_is_confirmed_near_the_noise_on_the_check_not_an_rms_cut():
     wild = {**good, "elpd_reliable": False, "delta_elpd": -3864.0, "delta_elpd_se": 434.0}
     assert confirmed(wild, base_log_z=4425.0)  # Δlog Z +22
     assert not confirmed(wild, base_log_z=4446.0) and not confirmed(wild, base_log_z=None)
+    # evidence n/a on one side: leave-future-out decides, beyond twice its standard error
+    steady = np.full(60, 0.5)  # ΔLFO +30, every future point a little better: se ~0
+    assert confirmed({**wild, "lfo_points": steady, "delta_lfo": 30.0}, base_log_z=None)
+    assert confirmed({**wild, "lfo_points": steady, "delta_lfo": 30.0, "log_evidence": None},
+                     base_log_z=4425.0)
+    rng = np.random.default_rng(3)
+    noisy = rng.normal(0.0, 3.0, 60)
+    noisy += 0.5 - noisy.mean()  # the same ΔLFO +30, scattered: se ~23
+    assert not confirmed({**wild, "lfo_points": noisy, "delta_lfo": 30.0}, base_log_z=None)
 
 
 # a steep throw: 20 m/s up, 2 m/s at the top, hidden quadratic drag; linear drag cannot bend the
