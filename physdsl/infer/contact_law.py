@@ -108,7 +108,6 @@ def _central(f, x, directions, h: float) -> np.ndarray:
     return np.stack([(f(x + h * u) - f(x - h * u)) / (2.0 * h) for u in directions.T], axis=1)
 
 
-
 def marginal_covariance(model, problem, mode, width: float = WIDTH) -> dict | None:
     """The unknowns' covariance added by the contact law's nuisances (d, d), with what it
     came from; None where the scene has no pair with a fixed restitution (nothing computed:

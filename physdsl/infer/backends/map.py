@@ -293,9 +293,8 @@ def laplace_sqrt(problem, mode) -> np.ndarray:
         raise LaplaceError(f"the log density's curvature at the mode is not finite in "
                            f"{int((~np.isfinite(H)).any(axis=0).sum())} of {d} coordinates: "
                            "no Laplace approximation", hint=LAPLACE_HINT)
-    w, v = np.linalg.eigh(H)
-    bad = _not_concave(w)
-    if bad.any() or not np.all(np.isfinite(v)):
+    S, w, v, bad = _inverse_sqrt(H)
+    if S is None:
         fisher = _gauss_newton_sqrt(problem, mode)
         if fisher is not None:
             return fisher
@@ -307,13 +306,17 @@ def laplace_sqrt(problem, mode) -> np.ndarray:
                            f"{int(bad.sum())} of {d} directions: no Laplace approximation. "
                            f"Flat or not concave along: {words}", hint=LAPLACE_HINT,
                            directions=directions)
-    return v / np.sqrt(w)
+    return S
 
 
-def _not_concave(w) -> np.ndarray:
-    """Eigenvalues of a negative Hessian that are not positive enough to invert (flat within
-    1e-10 of the largest, curving up, or not finite)."""
-    return ~np.isfinite(w) | (w <= 1e-10 * max(float(np.max(np.abs(w), initial=0.0)), 1e-300))
+def _inverse_sqrt(H):
+    """(S with S S^T = H^-1, or None where the symmetric H is not positive enough to invert;
+    its eigenvalues w and vectors v; the mask of eigenvalues flat within 1e-10 of the largest,
+    curving up, or not finite)."""
+    w, v = np.linalg.eigh(H)
+    bad = ~np.isfinite(w) | (w <= 1e-10 * max(float(np.max(np.abs(w), initial=0.0)), 1e-300))
+    ok = not bad.any() and np.all(np.isfinite(v))
+    return (v / np.sqrt(w) if ok else None), w, v, bad
 
 
 def _gauss_newton_sqrt(problem, mode) -> np.ndarray | None:
@@ -326,10 +329,7 @@ def _gauss_newton_sqrt(problem, mode) -> np.ndarray | None:
     H = 0.5 * (H + H.T)
     if not np.all(np.isfinite(H)):
         return None
-    w, v = np.linalg.eigh(H)
-    if _not_concave(w).any() or not np.all(np.isfinite(v)):
-        return None
-    return v / np.sqrt(w)
+    return _inverse_sqrt(H)[0]
 
 
 LAPLACE_HINT = ("to sample the posterior from this mode instead, add `--fallback rmh` to "
