@@ -185,22 +185,30 @@ def bind(problem: Problem, data):
     return lambda x: problem.logdensity(x, data)
 
 
-def safe_logdensity(fn):
+def safe_logdensity(fn, value_and_grad=None):
     """Wrap a log density ``fn(x, data)`` so NaN/inf values or gradients become -inf with
     zero gradient (no gradient flows to ``data``).
 
     A rollout that blows up for some parameter values then is a rejected proposal, not a
     crash, and no NaN leaks into the sampler's state through the gradient. Without
     differentiation only the value is computed (gradient-free backends pay no gradient).
+    ``value_and_grad``: a jitted (x, data) -> (value, gradient, ...) to take them from (the
+    Gauss-Newton program, whose trace the mode search has made already), else forward mode.
     """
+
+    # jitted, so a sampler that calls the log density at several places of its step (NUTS:
+    # six, in its tree's loops) traces the rollout and its tangents once, not at each
+    value = jax.jit(fn)
+    if value_and_grad is None:
+        value_and_grad = jax.jit(lambda x, data: _value_and_grad(fn, x, data))
 
     @jax.custom_vjp
     def f(x, data):
-        v = fn(x, data)
+        v = value(x, data)
         return jnp.where(jnp.isfinite(v), v, -jnp.inf)
 
     def fwd(x, data):
-        v, g = _clean(*_value_and_grad(fn, x, data))
+        v, g = _clean(*value_and_grad(x, data)[:2])
         return v, (g, data)
 
     def bwd(res, ct):

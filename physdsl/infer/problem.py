@@ -60,7 +60,8 @@ def _functions(model):
     with_residuals, neg_log_prior = least_squares_parts(model, unravel)
     if not (model.least_squares and dim <= FORWARD_MODE_MAX):
         return safe_logdensity(logdensity), to_constrained, dim, None, None, None
-    return (safe_logdensity(logdensity), to_constrained, dim, gauss_newton(with_residuals),
+    gn = jax.jit(gauss_newton(with_residuals))  # one trace serves the fit and the samplers
+    return (safe_logdensity(logdensity, gn), to_constrained, dim, gn,
             jax.hessian(neg_log_prior), draw_function(model, unravel, neg_log_prior))
 
 

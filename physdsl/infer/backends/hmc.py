@@ -1,9 +1,11 @@
 """HMC and NUTS from blackjax, tuned by Stan's window adaptation (step size, mass matrix:
 dense by default, diagonal with ``Settings.dense_mass=False``).
 
+Both run in the Laplace frame (``physdsl.infer.precondition``): x = shift + scale z, with the
+posterior near a standard normal in z, so the adaptation starts from unit widths.
 Warmup and sampling run the same compiled block (``physdsl.infer.blocks``): up to
-``settings.block`` transitions of every chain per call, chains vmapped, with the step size
-and inverse mass matrix in each chain's carry. During warmup each transition also updates the
+``settings.block`` transitions of every chain per call, chains vmapped, with the step size,
+inverse mass matrix and frame in each chain's carry. During warmup each transition also updates the
 window adaptation (blackjax's ``window_adaptation.base``, schedule passed in per block);
 sampling uses the adapted values. One compile serves both stages, every block and every
 Model of the scene's structure.
@@ -22,16 +24,18 @@ from blackjax.mcmc.hmc import HMCState
 
 from ..base import Backend, bind, register_backend, value_and_grad_fn
 from ..blocks import block_runner, run_blocks
+from ..precondition import from_frame, laplace_frame, to_frame
 
 INITIAL_STEP_SIZE = 1.0
 
 
-def initial_states(problem, positions) -> HMCState:
-    """HMC states at ``positions`` from the Problem's one compiled value-and-gradient."""
+def initial_states(problem, positions, shift, scale) -> HMCState:
+    """HMC states at ``positions``, in the frame x = shift + scale z (the gradient in z is
+    scale^T times the gradient in x), from the Problem's one compiled value-and-gradient."""
     vg = value_and_grad_fn(problem)
     pairs = [vg(x) for x in jnp.asarray(positions)]
-    return HMCState(jnp.asarray(positions), jnp.stack([v for v, _ in pairs]),
-                    jnp.stack([g for _, g in pairs]))
+    return HMCState(to_frame(shift, scale, positions), jnp.stack([v for v, _ in pairs]),
+                    jnp.stack([g for _, g in pairs]) @ jnp.asarray(scale))
 
 
 def tree_where(cond, a, b):
@@ -53,23 +57,27 @@ class _BlackjaxHMCFamily(Backend):
         return {}
 
     def _runner(self, problem, settings):
-        """The compiled block: carry (state, adaptation state, (step size, inverse mass));
-        shared (stages (block, 2), adapting)."""
+        """The compiled block: carry (state in the frame, adaptation state, (step size,
+        inverse mass, shift, scale)); shared (stages (block, 2), adapting). It emits draws in
+        the problem's own coordinates."""
         extra = self._extra(settings)
         _, update, _ = _window(settings)
 
         def transition(data, key, carry, shared, i):
-            state, astate, (step_size, imm) = carry
+            state, astate, (step_size, imm, shift, scale) = carry
             stages, adapting = shared
             step_size = jnp.where(adapting, astate.step_size, step_size)
             imm = jnp.where(adapting, astate.inverse_mass_matrix, imm)
             if self.step_jitter:
                 u = jax.random.uniform(jax.random.fold_in(key, 1), minval=-1.0, maxval=1.0)
                 step_size = step_size * (1.0 + self.step_jitter * u)
-            state, info = self.algorithm(bind(problem, data), step_size, imm, **extra).step(key, state)
+            logdensity = bind(problem, data)
+            state, info = self.algorithm(lambda z: logdensity(from_frame(shift, scale, z)),
+                                         step_size, imm, **extra).step(key, state)
             new = update(astate, (stages[i, 0], stages[i, 1]), state.position, info.acceptance_rate)
             astate = tree_where(adapting, new, astate)
-            return (state, astate, carry[2]), (state.position, _stats(info))
+            draw = from_frame(shift, scale, state.position)
+            return (state, astate, carry[2]), (draw, _stats(info))
 
         key = (self.name, tuple(sorted(extra.items())), settings.target_accept, settings.dense_mass)
         return block_runner(problem, key, transition, settings.block)
@@ -79,9 +87,14 @@ class _BlackjaxHMCFamily(Backend):
         run = self._runner(problem, settings)
         positions = jnp.asarray(positions)
         chains = positions.shape[0]
-        astates = jax.vmap(lambda x: init(x, INITIAL_STEP_SIZE))(positions)
-        tuning = (jnp.ones(chains), astates.inverse_mass_matrix)  # placeholders while adapting
-        carries = (initial_states(problem, positions), astates, tuning)
+        shift, scale = (jnp.asarray(a) for a in laplace_frame(problem, positions))
+        states = initial_states(problem, positions, shift, scale)
+        astates = jax.vmap(lambda z: init(z, INITIAL_STEP_SIZE))(states.position)
+        frame = (jnp.broadcast_to(shift, positions.shape),
+                 jnp.broadcast_to(scale, (chains, *scale.shape)))
+        # step size and inverse mass: placeholders while adapting
+        tuning = (jnp.ones(chains), astates.inverse_mass_matrix, *frame)
+        carries = (states, astates, tuning)
         n = settings.warmup
         schedule = np.asarray(build_schedule(n), dtype=np.int32).reshape(n, 2)
 
@@ -93,17 +106,21 @@ class _BlackjaxHMCFamily(Backend):
         (states, astates, _), _ = run_blocks(run, problem, key, carries, n, settings.block, shared,
                                              on_block)
         step_size, inverse_mass_matrix = jax.vmap(final)(astates)
-        params = {"step_size": step_size, "inverse_mass_matrix": inverse_mass_matrix}
+        params = {"step_size": step_size, "inverse_mass_matrix": inverse_mass_matrix,
+                  "shift": frame[0], "scale": frame[1]}
         return states, params, {"step_size": step_size}
 
     def sample(self, problem, states, params, key, n, settings, start=0):
         init, _, _ = _window(settings)
         run = self._runner(problem, settings)
         states = HMCState(*map(jnp.asarray, states))
-        step_size = jnp.asarray(params["step_size"])
-        imm = jnp.asarray(params["inverse_mass_matrix"])
-        carries = (states, jax.vmap(lambda x: init(x, INITIAL_STEP_SIZE))(states.position),
-                   (step_size, imm))
+        chains, dim = states.position.shape
+        frame = (params.get("shift", np.zeros((chains, dim))),  # a run saved before frames
+                 params.get("scale", np.broadcast_to(np.eye(dim), (chains, dim, dim))))
+        tuning = tuple(jnp.asarray(a) for a in
+                       (params["step_size"], params["inverse_mass_matrix"], *frame))
+        carries = (states, jax.vmap(lambda z: init(z, INITIAL_STEP_SIZE))(states.position),
+                   tuning)
         shared = (jnp.zeros((settings.block, 2), jnp.int32), jnp.asarray(False))
         (states, _, _), (draws, stats) = run_blocks(run, problem, key, carries, n, settings.block,
                                                     lambda _, m: shared, offset=start)

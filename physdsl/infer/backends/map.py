@@ -271,7 +271,7 @@ def laplace_sqrt(problem, mode) -> np.ndarray:
 
     The Hessian is taken by central differences of the gradient. Where those find a direction
     flat or curving upwards, a least-squares scene takes the Gauss-Newton curvature instead
-    (``_gauss_newton_sqrt``): differences across a kink of the rollout (Coulomb friction
+    (``gauss_newton_sqrt``): differences across a kink of the rollout (Coulomb friction
     reversing, a contact switching) give no curvature, while the data's Fisher information
     J^T J does. A direction flat in that too (an unknown the data do not determine) has no
     Laplace approximation: LaplaceError names each such direction by the unknowns that make
@@ -295,7 +295,7 @@ def laplace_sqrt(problem, mode) -> np.ndarray:
                            "no Laplace approximation", hint=LAPLACE_HINT)
     S, w, v, bad = _inverse_sqrt(H)
     if S is None:
-        fisher = _gauss_newton_sqrt(problem, mode)
+        fisher = gauss_newton_sqrt(problem, mode)
         if fisher is not None:
             return fisher
         names = coordinate_names(problem)
@@ -319,7 +319,7 @@ def _inverse_sqrt(H):
     return (v / np.sqrt(w) if ok else None), w, v, bad
 
 
-def _gauss_newton_sqrt(problem, mode) -> np.ndarray | None:
+def gauss_newton_sqrt(problem, mode) -> np.ndarray | None:
     """S with S S^T the inverse Gauss-Newton curvature (J^T J plus the prior's Hessian) at
     ``mode``; None where the likelihood is not least squares or that curvature is flat too."""
     gn = gauss_newton_fn(problem)
