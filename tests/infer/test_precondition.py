@@ -46,3 +46,24 @@ def test_a_nuts_warmup_traces_the_rollout_once(tmp_path):
     states, _, _ = get_backend("nuts").warmup(problem, positions, jax.random.PRNGKey(0), settings)
     assert np.all(np.isfinite(np.asarray(states.position)))
     assert model.simulator.trace_count == before
+
+
+def test_chains_side_by_side_or_one_after_another_give_the_same_draws(projectile_model,
+                                                                      monkeypatch):
+    """The CPU runs a block's chains with ``lax.map``, an accelerator vmaps them
+    (``blocks.chains_side_by_side``): the same keys give the same NUTS draws either way."""
+    from physdsl.infer import blocks
+
+    settings = Settings(chains=2, warmup=20, samples=5)
+    problem, positions = starts(projectile_model, settings, settings.init_steps, [])
+    draws = []
+    for side_by_side in (False, True):
+        monkeypatch.setattr(blocks, "chains_side_by_side", lambda s=side_by_side: s)
+        nuts = get_backend("nuts")
+        key = ("layout", side_by_side)  # a block of its own per layout (the cache is shared)
+        monkeypatch.setattr(nuts, "name", f"nuts-{key}")
+        states, params, _ = nuts.warmup(problem, positions, jax.random.PRNGKey(1), settings)
+        draws.append(np.asarray(nuts.sample(problem, states, params, jax.random.PRNGKey(2), 5,
+                                            settings)[1]))
+    assert draws[0].shape == (2, 5, problem.dim)
+    np.testing.assert_allclose(draws[0], draws[1], rtol=1e-9, atol=1e-12)
