@@ -4,8 +4,9 @@ near its best start is close to a standard normal, for the gradient samplers.
 Physical unknowns have posterior widths of millimetres next to metres per second, and are
 correlated (a launch point with its velocity). Stan's window adaptation starts from an
 identity mass matrix and regularises each estimate toward 1e-3 times the identity, which is
-far too wide for such widths: the first windows build trees of hundreds of leapfrog steps
-(the README's thrown ball: warmup took 8x the sampling's time per transition). In the Laplace
+far too wide for such widths: the first windows built trees of up to 63 leapfrog steps where
+sampling needed 7 (the README's thrown ball: warmup took 8x the sampling's time per
+transition). In the Laplace
 frame (``scale`` a square root of the inverse curvature at the start: Gauss-Newton where the
 likelihood is least squares, else central differences) unit widths are right from the first
 transition. HMC is exact in any affine frame; only its efficiency changes. Where no curvature

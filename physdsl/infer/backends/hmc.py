@@ -4,8 +4,9 @@ dense by default, diagonal with ``Settings.dense_mass=False``).
 Both run in the Laplace frame (``physdsl.infer.precondition``): x = shift + scale z, with the
 posterior near a standard normal in z, so the adaptation starts from unit widths.
 Warmup and sampling run the same compiled block (``physdsl.infer.blocks``): up to
-``settings.block`` transitions of every chain per call, chains vmapped, with the step size,
-inverse mass matrix and frame in each chain's carry. During warmup each transition also updates the
+``settings.block`` transitions of every chain per call (``blocks.chains_side_by_side``), with
+the step size, inverse mass matrix and frame in each chain's carry. During warmup each
+transition also updates the
 window adaptation (blackjax's ``window_adaptation.base``, schedule passed in per block);
 sampling uses the adapted values. One compile serves both stages, every block and every
 Model of the scene's structure.
