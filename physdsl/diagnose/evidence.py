@@ -19,7 +19,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..infer.backends.map import LaplaceError, find_mode, laplace_sqrt
+from ..infer.backends.map import LaplaceError, find_mode, laplace_sqrt, newton_gain
 from ..infer.base import gauss_newton_fn, value_and_grad_fn
 from ..infer.problem import model_problem, start_position
 from .workflow import noise_unknowns, point_estimate
@@ -45,21 +45,12 @@ def laplace_log_evidence(model, idata=None, *, values: dict | None = None) -> fl
         except LaplaceError:
             return None
         H = np.linalg.inv(S @ S.T)
-    if not newton_gain(g, H) <= MODE_SLACK:
+    if not newton_gain(H, g) <= MODE_SLACK:
         return None  # the mode search stopped short of a mode (a kink, an edge): no Laplace
     return quadratic_log_evidence(float(v), g, H)
 
 
 MODE_SLACK = 1.0  # log-density units a Newton step may still gain at a point taken as the mode
-
-
-def newton_gain(g: np.ndarray, H: np.ndarray) -> float:
-    """½ gᵀH⁻¹g: what a Newton step would still gain (inf where H is not positive definite)."""
-    try:
-        w = np.linalg.solve(np.linalg.cholesky(0.5 * (H + H.T)), g)
-    except np.linalg.LinAlgError:
-        return math.inf
-    return float(0.5 * w @ w) if np.all(np.isfinite(w)) else math.inf
 
 
 def quadratic_log_evidence(v: float, g: np.ndarray, H: np.ndarray) -> float | None:

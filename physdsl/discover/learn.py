@@ -19,9 +19,9 @@ import jax.numpy as jnp
 
 from ..compile import Model
 from ..diagnose.edits import load_text
-from ..diagnose.evidence import MODE_SLACK, newton_gain, quadratic_log_evidence
+from ..diagnose.evidence import MODE_SLACK, quadratic_log_evidence
 from ..diagnose.workflow import check_model, point_estimate
-from ..infer.backends.map import levenberg_marquardt
+from ..infer.backends.map import levenberg_marquardt, newton_gain
 from ..infer.base import Settings, cached, gauss_newton, value_fn
 from ..infer.fit import FIT_DRAWS
 from ..infer.problem import (least_squares_parts, model_problem, start_position,
@@ -148,7 +148,7 @@ def fit_residual(base: Fit, target: str, hidden: int = HIDDEN, center=(0.0, 0.0,
     v, g, H = (np.asarray(a, dtype=float) for a in gn(jnp.asarray(x)))
     fit = fitted(model, gn_laplace(model, problem, x, H, seed))
     fit.log_z = (quadratic_log_evidence(float(v), g, H)
-                 if newton_gain(g, H) <= MODE_SLACK else None)
+                 if newton_gain(H, g) <= MODE_SLACK else None)
     return fit
 
 
