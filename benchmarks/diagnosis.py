@@ -220,8 +220,11 @@ def run_refine(name: str, seed: int, folder: Path | None = None) -> dict:
         with (Path(last.scene).parent / "fit" / "summary.csv").open() as f:
             summary = {r["name"]: r for r in csv.DictReader(f)}
     refit = {}
+    naive_unknowns = set(truth.get("naive_unknowns", ()))
     for key, value in truth.get("parameters", {}).items():
-        if "@" not in key:
+        # an effect's strength (``law@target.name``), or a shared ``param`` that refine added
+        # for a material-wide law (billiards' ``table_contact_friction``)
+        if "@" not in key and (key in naive_unknowns or key not in summary):
             continue
         name = _shared_param(final, key) or key
         rows = [summary[k] for k in summary if k == name or k.startswith(name + "[")]
