@@ -61,7 +61,8 @@ def chains_side_by_side() -> bool:
     """Whether the chains of a block run vmapped (on an accelerator, in parallel) or one
     after another (``lax.map``, on the CPU). On the CPU vmapping buys no parallelism, runs
     every chain to the longest NUTS tree of the lot, and batching the tree's while loops
-    around a rollout cost most of the block's tracing (the README's thrown ball: 40 of 50 s)."""
+    around a rollout cost most of the block's tracing (the README's thrown ball, under a
+    profiler: 40 of 50 s)."""
     return jax.default_backend() != "cpu"
 
 

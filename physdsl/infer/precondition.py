@@ -21,13 +21,16 @@ from .backends.map import LaplaceError, gauss_newton_sqrt, laplace_sqrt
 from .base import value_and_grad_fn
 
 
-def laplace_frame(problem, positions) -> tuple[np.ndarray, np.ndarray]:
-    """(shift, scale) of the Laplace frame at the best of ``positions`` (by log density):
-    ``scale`` S with S S^T the inverse curvature there, or the identity where there is none."""
+def laplace_frame(problem, positions, lps=None) -> tuple[np.ndarray, np.ndarray]:
+    """(shift, scale) of the Laplace frame at the best of ``positions`` by log density (``lps``
+    where the caller has them: each costs a rollout): ``scale`` S with S S^T the inverse
+    curvature there, or the identity where there is none."""
     positions = np.asarray(positions, dtype=float)
     dim = positions.shape[1]
-    vg = value_and_grad_fn(problem)
-    lps = np.array([float(vg(jnp.asarray(x))[0]) for x in positions])
+    if lps is None:
+        vg = value_and_grad_fn(problem)
+        lps = [float(vg(jnp.asarray(x))[0]) for x in positions]
+    lps = np.asarray(lps, dtype=float)
     lps = np.where(np.isfinite(lps), lps, -np.inf)
     centre = positions[int(np.argmax(lps))]
     scale = gauss_newton_sqrt(problem, centre)

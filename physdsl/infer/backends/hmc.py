@@ -30,13 +30,18 @@ from ..precondition import from_frame, laplace_frame, to_frame
 INITIAL_STEP_SIZE = 1.0
 
 
-def initial_states(problem, positions, shift, scale) -> HMCState:
-    """HMC states at ``positions``, in the frame x = shift + scale z (the gradient in z is
-    scale^T times the gradient in x), from the Problem's one compiled value-and-gradient."""
+def values_and_grads(problem, positions):
+    """(log densities, gradients) at ``positions`` from the Problem's one compiled
+    value-and-gradient."""
     vg = value_and_grad_fn(problem)
     pairs = [vg(x) for x in jnp.asarray(positions)]
-    return HMCState(to_frame(shift, scale, positions), jnp.stack([v for v, _ in pairs]),
-                    jnp.stack([g for _, g in pairs]) @ jnp.asarray(scale))
+    return jnp.stack([v for v, _ in pairs]), jnp.stack([g for _, g in pairs])
+
+
+def initial_states(positions, values, grads, shift, scale) -> HMCState:
+    """HMC states at ``positions`` (their log densities and gradients), in the frame
+    x = shift + scale z (the gradient in z is scale^T times the gradient in x)."""
+    return HMCState(to_frame(shift, scale, positions), values, grads @ jnp.asarray(scale))
 
 
 def tree_where(cond, a, b):
@@ -88,8 +93,9 @@ class _BlackjaxHMCFamily(Backend):
         run = self._runner(problem, settings)
         positions = jnp.asarray(positions)
         chains = positions.shape[0]
-        shift, scale = (jnp.asarray(a) for a in laplace_frame(problem, positions))
-        states = initial_states(problem, positions, shift, scale)
+        values, grads = values_and_grads(problem, positions)
+        shift, scale = (jnp.asarray(a) for a in laplace_frame(problem, positions, values))
+        states = initial_states(positions, values, grads, shift, scale)
         astates = jax.vmap(lambda z: init(z, INITIAL_STEP_SIZE))(states.position)
         frame = (jnp.broadcast_to(shift, positions.shape),
                  jnp.broadcast_to(scale, (chains, *scale.shape)))
