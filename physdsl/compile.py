@@ -29,6 +29,8 @@ from .errors import ModelError, PhysTypeError
 from .expr import evaluate, references
 from .observe import sensor, trajectory
 from .physics import build_simulator
+from .physics.idle import clear
+from .physics.ruled_out import ruled_out_pairs
 from .render.likelihood import scene_image_log_likelihood
 from .scene import Observation, Prior, Scene, Unknown
 from .syntax import load, loads
@@ -155,15 +157,28 @@ def _hash_walk(h, x) -> None:
 
 
 class Compiled:
-    """What Models of one scene structure share: the simulator and a cache of compiled functions.
+    """What Models of one scene structure share: the simulator, the simulator the likelihood
+    reads (without the contact pairs the recording rules out, ``ruled_out``) and a cache of
+    compiled functions.
 
     ``cache`` maps a name (e.g. a backend's transition) to a jitted function whose arguments
-    include the data, so it serves every Model of the structure.
+    include the data, so it serves every Model of the structure and of the same ``ruled_out``.
     """
 
-    def __init__(self, scene: Scene):
-        self.simulator = build_simulator(scene)
+    def __init__(self, scene: Scene, ruled_out: tuple[int, ...] = (), simulator=None):
+        self.simulator = build_simulator(scene) if simulator is None else simulator
+        self.ruled_out = ruled_out
+        self.likelihood_simulator = self.simulator if not ruled_out else build_simulator(
+            without_pairs(scene, self.simulator.model, ruled_out))
         self.cache: dict = {}
+
+
+def without_pairs(scene: Scene, model, pairs: tuple[int, ...]) -> Scene:
+    """``scene`` without the contact pairs ``pairs`` (indices into ``model.pairs``)."""
+    names = model.body_names
+    drop = {frozenset((names[model.pairs[k].a], names[model.pairs[k].b])) for k in pairs}
+    return dataclasses.replace(scene, contact_pairs=tuple(
+        p for p in scene.contact_pairs if frozenset(p) not in drop))
 
 
 # structure key -> Compiled, alive while some Model holds it
@@ -179,20 +194,30 @@ class Model:
     checks and diagnosis are functions over it: ``physdsl.api``). A scene with
     ``experiments`` makes a ``pooled.PooledModel`` (many recordings)."""
 
-    def __new__(cls, scene: Scene, until: float | None = None):
+    def __new__(cls, scene: Scene, until: float | None = None, every_contact: bool = False):
         if cls is Model and getattr(scene, "experiments", None) is not None:
             cls = MODEL_KINDS["pooled"]
         return super().__new__(cls)
 
-    def __init__(self, scene: Scene, until: float | None = None):
+    def __init__(self, scene: Scene, until: float | None = None, every_contact: bool = False):
         self.scene = scene
         self.until = until  # fit only measurements up to this time (leave-future-out)
         key = structure_key(scene)
         compiled = _COMPILED.get(key)
         if compiled is None:
             compiled = _COMPILED[key] = Compiled(scene)
-        self.compiled = compiled
         self.simulator = compiled.simulator
+        # the contact pairs the recording rules out: the likelihood simulates without them
+        ruled_out = () if every_contact else self._ruled_out()
+        if ruled_out:
+            key_fit = f"{key}:without{ruled_out}"
+            fit = _COMPILED.get(key_fit)
+            if fit is None:
+                fit = _COMPILED[key_fit] = Compiled(scene, ruled_out, compiled.simulator)
+            compiled = fit
+        self.compiled = compiled
+        self.ruled_out = compiled.ruled_out
+        self.likelihood_simulator = compiled.likelihood_simulator
         self.unknowns = tuple(dependency_order(scene.unknowns))
         self.observed = tuple(self._prepare(o) for o in scene.observations
                               if o.quantity in trajectory.QUANTITIES)
@@ -202,6 +227,35 @@ class Model:
             {"t"} | {trajectory.source(o.obs, self.simulator) for o in self.observed}))
 
     # -- pieces -------------------------------------------------------------------------
+    def _ruled_out(self) -> tuple[int, ...]:
+        """The contact pairs the recording rules out (``physics.ruled_out``)."""
+        return ruled_out_pairs(self.scene, self.simulator.model, self.until)
+
+    def with_every_contact(self) -> "Model":
+        """This Model with every contact pair in its likelihood (where a fit without the pairs
+        the recording ruled out came within their reach: ``contact_reached``)."""
+        return type(self)(self.scene, self.until, every_contact=True)
+
+    def contact_reached(self, values) -> np.ndarray:
+        """Per draw of ``values`` (name -> (n, *shape)): whether the likelihood's rollout comes
+        within reach of a contact pair it leaves out (``idle.clear``'s rule, under which the
+        rollout with every pair is this one); all False where none is left out."""
+        n = len(next(iter(values.values()))) if values else 1
+        if not self.ruled_out:
+            return np.zeros(n, bool)
+
+        def build():
+            sim, full = self.likelihood_simulator, self.simulator
+
+            def reached(v):
+                roll = sim.simulate(v, ("body_pos", "body_vel", "t"))
+                return ~clear(full.model, full.params(v), roll.body_pos, roll.body_vel,
+                              self.ruled_out)
+            return jax.jit(lambda vs: jax.lax.map(reached, vs))
+
+        return np.asarray(self.cached("contact-reached", build)(
+            {k: jnp.asarray(v) for k, v in values.items()}))
+
     def _prepare(self, obs: Observation) -> ObservedTrajectory:
         interp = trajectory.interpolation(np.asarray(self.simulator.times), obs.times, str(obs.file))
         measured = np.where(obs.mask, obs.values, 0.0)
@@ -226,6 +280,12 @@ class Model:
         """Rollout of the scene for the unknowns' ``values`` (name -> array)."""
         return self.simulator.simulate(values)
 
+    def fit_simulate(self, values):
+        """The rollout the likelihood reads (``likelihood_simulator``: without the contact
+        pairs the recording rules out; equal to ``simulate``'s where ``contact_reached`` is
+        False, but for their contact forces)."""
+        return self.likelihood_simulator.simulate(values)
+
     def rollout_of(self, rollout, obs_name: str):
         """The part of ``simulate``'s rollout that observation ``obs_name`` is read from (a
         pooled Model's rollout holds every recording's)."""
@@ -243,7 +303,7 @@ class Model:
     def predict(self, values, rollout=None, data=None):
         """Noise-free predictions of every trajectory observation: name -> (N, D)."""
         if rollout is None:
-            rollout = self.simulator.simulate(values, self.rollout_fields)
+            rollout = self.likelihood_simulator.simulate(values, self.rollout_fields)
         data = self.data if data is None else data
         return {o.obs.name: sensor.predict(rollout, self.simulator, o.obs, _interp(data[o.obs.name]),
                                            values)
@@ -309,7 +369,7 @@ class Model:
         """
         data = self.data if data is None else data
         values = self.prior_values()
-        rollout = self.simulator.simulate(values, self.rollout_fields)
+        rollout = self.likelihood_simulator.simulate(values, self.rollout_fields)
         for o in self.observed:
             d = data[o.obs.name]
             pred = sensor.predict(rollout, self.simulator, o.obs, _interp(d), values)

@@ -43,8 +43,8 @@ class PooledModel(Model):
     """The Model of a scene with ``experiments``: per-recording and shared unknowns in one
     program, the rollout vectorised over recordings (see the module's docstring)."""
 
-    def __init__(self, scene, until: float | None = None):
-        super().__init__(scene, until)
+    def __init__(self, scene, until: float | None = None, every_contact: bool = False):
+        super().__init__(scene, until, every_contact)
         ex = scene.experiments
         self.recordings = ex.recordings
         self.n = len(ex.recordings)
@@ -62,6 +62,10 @@ class PooledModel(Model):
                 self.recording_of[name] = i
                 self.written[name] = o.name
         self.observed = tuple(observed)
+
+    def _ruled_out(self) -> tuple[int, ...]:
+        """Every contact pair stays in the likelihood: recordings differ in what they rule out."""
+        return ()
 
     @property
     def recording_names(self) -> tuple[str, ...]:
@@ -117,6 +121,10 @@ class PooledModel(Model):
 
     def simulate(self, values):
         """Every recording's rollout (see ``rollouts``) for the unknowns' ``values``."""
+        return self.rollouts(values)
+
+    def fit_simulate(self, values):
+        """The rollouts the likelihood reads: ``simulate``'s (no pair is left out here)."""
         return self.rollouts(values)
 
     def predict(self, values, rollout=None, data=None):

@@ -80,7 +80,7 @@ def observable_fits(model, idata, max_draws: int = MAX_DRAWS) -> list[Observable
     the prediction at the most likely draw (``point_estimate``: the residuals)."""
     draws = posterior_draws(model, idata, max_draws)
     values = point_estimate(model, idata)
-    rollout = model.simulate(values)
+    rollout = model.fit_simulate(values)
     central = {k: np.asarray(v) for k, v in model.predict(values, rollout).items()}
     pp = idata.posterior_predictive
     fits = []

@@ -70,8 +70,8 @@ def draw_function(model, unravel, neg_log_prior):
     pointwise log-likelihood by observable; log density) of one flat unconstrained draw.
 
     Three compiled parts: constraining (no physics), the scene's rollout itself
-    (``model.simulate``: the Simulator's one compiled rollout, which the fit's quality and
-    ``check`` call too) and the predictions and likelihood read off it (no physics). The log
+    (``model.fit_simulate``: the likelihood's Simulator's one compiled rollout, which the fit's
+    quality and ``check`` call too) and the predictions and likelihood read off it (no physics). The log
     density is the Gauss-Newton function's (``least_squares_parts``; -inf where not finite),
     so the fit's value function is this one (``base.value_fn``) and the posterior pass
     (``output.posterior_pass``) reuses its compiled rollout instead of tracing another."""
@@ -89,7 +89,7 @@ def draw_function(model, unravel, neg_log_prior):
 
     def draw(x, data):
         values = constrain(x)
-        return read(x, values, model.simulate(values), data)
+        return read(x, values, model.fit_simulate(values), data)
 
     return draw
 

@@ -61,8 +61,14 @@ def infer(model, backend: str = "nuts", settings: Settings | None = None, outdir
         settings = with_init(model, settings, init)
     with termination():
         try:
-            return _run(model, backend, settings, outdir, resume, force, progress, positions,
-                        quality)
+            try:
+                return _run(model, backend, settings, outdir, resume, force, progress,
+                            positions, quality)
+            except ContactReached as reached:
+                if progress:
+                    print(reached, file=sys.stderr, flush=True)
+                return _run(model.with_every_contact(), backend, settings, outdir, False, force,
+                            progress, positions, quality)
         except Interrupted as ex:
             if outdir is not None and (Path(outdir) / CHECKPOINT).exists():
                 ex.note = (f"the checkpoint in {outdir} keeps the draws so far: continue with "
@@ -136,12 +142,38 @@ def _run(model, backend, settings, outdir, resume, force, progress, positions, q
     if not np.all(np.isfinite(flat)):
         raise InferenceError("sampler produced non-finite draws",
                              hint="try --backend rmh or tighter priors")
+    _check_contacts_left_out(model, idata, ckpt_path)
     if out is not None:
         extra = {**_fit_quality(quality, model, idata, stages), **({"basins": basins} if basins else {})}
         save_run(out, model, idata, backend, settings, extra=extra)
         if ckpt_path.exists():
             ckpt_path.unlink()
     return idata
+
+
+class ContactReached(Exception):
+    """A draw of a fit whose likelihood left out the contact pairs the recording rules out came
+    within their reach: the fit runs again with every pair (``Model.with_every_contact``)."""
+
+
+def _check_contacts_left_out(model, idata, ckpt_path) -> None:
+    """Raise ContactReached (its checkpoint removed) where a draw of ``idata`` comes within
+    reach of a contact pair the likelihood left out (``Model.contact_reached``)."""
+    if not model.ruled_out:
+        return
+    post = idata.posterior
+    values = {u.name: np.asarray(post[u.name].values).reshape(-1, *u.shape)
+              for u in model.unknowns}
+    reached = model.contact_reached(values)
+    if reached.any():
+        if ckpt_path is not None and ckpt_path.exists():
+            ckpt_path.unlink()
+        names = model.simulator.body_names
+        pairs = ", ".join(f"({names[model.simulator.model.pairs[k].a]}, "
+                          f"{names[model.simulator.model.pairs[k].b]})" for k in model.ruled_out)
+        raise ContactReached(
+            f"{int(reached.sum())} of {len(reached)} draws come within reach of contact "
+            f"{pairs}, which the recording seemed to rule out: fitting again with every contact")
 
 
 def _warmup(algo, problem, positions, key, settings, stages):
@@ -233,6 +265,7 @@ def run_fingerprint(model, backend: str, settings: Settings, positions=None) -> 
         h.update(np.ascontiguousarray(np.asarray(positions, dtype=float)).tobytes())
     h.update(model.scene.source.encode())
     h.update(structure_key(model.scene).encode())
+    h.update(repr(model.ruled_out).encode())  # the pairs its likelihood leaves out
     for o in model.scene.observations:
         h.update(np.ascontiguousarray(o.values).tobytes())
     h.update(b"draw j from fold_in(key, j)")  # checkpoints of the per-block keys differ

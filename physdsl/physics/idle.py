@@ -36,7 +36,7 @@ def free_scene(scene, model: PhysicsModel):
     return (free, free_model) if central.decoupled(free_model) else None
 
 
-def _radius(kind: str, size):
+def bounding_radius(kind: str, size):
     """Bounding-sphere radius about the body origin (the centre of a primitive)."""
     if kind == "sphere":
         return size[0]
@@ -47,22 +47,24 @@ def _radius(kind: str, size):
     return jnp.hypot(size[0], size[1])  # cylinder
 
 
-def clear(model: PhysicsModel, prm: dict, pos, vel):
-    """True if no contact pair comes within reach along the flight ``pos``/``vel`` (T, B, 3)."""
+def clear(model: PhysicsModel, prm: dict, pos, vel, pairs=None):
+    """True if no contact pair (of ``pairs``, indices into ``model.pairs``; default all) comes
+    within reach along the flight ``pos``/``vel`` (T, B, 3)."""
     span = model.dt * model.substeps  # between recorded states
     speed = jnp.linalg.norm(vel, axis=-1)  # (T, B)
     speed = jnp.maximum(speed[1:], speed[:-1])  # over each interval
     ok = jnp.asarray(True)
-    for p in model.pairs:
+    for p in model.pairs if pairs is None else [model.pairs[k] for k in pairs]:
         a, b, ka, kb = p.a, p.b, p.kind_a, p.kind_b
         if ka == "plane":
             a, b, ka, kb = b, a, kb, ka
-        ra = _radius(ka, prm["size"][a])
+        ra = bounding_radius(ka, prm["size"][a])
         if kb == "plane":
             n = prm["size"][b] / jnp.linalg.norm(prm["size"][b])
             gap = (pos[:, a] - pos[:, b]) @ n - ra
         else:
-            gap = jnp.linalg.norm(pos[:, a] - pos[:, b], axis=-1) - ra - _radius(kb, prm["size"][b])
+            gap = (jnp.linalg.norm(pos[:, a] - pos[:, b], axis=-1) - ra
+                   - bounding_radius(kb, prm["size"][b]))
         gap = jnp.minimum(gap[1:], gap[:-1])
         ok = ok & jnp.all(gap > contact_margin + 2.0 * span * (speed[:, a] + speed[:, b]))
     return ok
