@@ -236,21 +236,25 @@ class Model:
         the recording ruled out came within their reach: ``contact_reached``)."""
         return type(self)(self.scene, self.until, every_contact=True)
 
+    def reaches_left_out(self, values, rollout):
+        """Whether ``rollout`` (the likelihood's, at ``values``; it has the bodies' positions
+        and velocities) comes within reach of a contact pair the likelihood leaves out:
+        ``idle.clear``'s rule, under which the rollout with every pair is this one (traced)."""
+        full = self.simulator
+        return ~clear(full.model, full.params(values), rollout.body_pos, rollout.body_vel,
+                      self.ruled_out)
+
     def contact_reached(self, values) -> np.ndarray:
-        """Per draw of ``values`` (name -> (n, *shape)): whether the likelihood's rollout comes
-        within reach of a contact pair it leaves out (``idle.clear``'s rule, under which the
-        rollout with every pair is this one); all False where none is left out."""
+        """``reaches_left_out`` per draw of ``values`` (name -> (n, *shape)); all False where
+        no pair is left out."""
         n = len(next(iter(values.values()))) if values else 1
         if not self.ruled_out:
             return np.zeros(n, bool)
 
         def build():
-            sim, full = self.likelihood_simulator, self.simulator
-
             def reached(v):
-                roll = sim.simulate(v, ("body_pos", "body_vel", "t"))
-                return ~clear(full.model, full.params(v), roll.body_pos, roll.body_vel,
-                              self.ruled_out)
+                roll = self.likelihood_simulator.simulate(v, ("body_pos", "body_vel", "t"))
+                return self.reaches_left_out(v, roll)
             return jax.jit(lambda vs: jax.lax.map(reached, vs))
 
         return np.asarray(self.cached("contact-reached", build)(

@@ -32,6 +32,7 @@ from scipy.stats import chi2
 
 from .backends.map import FOUND_MODES, find_mode, levenberg_marquardt
 from .base import gauss_newton_fn, value_fn
+from .threads import thread_map
 
 BLOCKS = 8  # contiguous time blocks, each left out once
 # Levenberg-Marquardt steps per refit, warm-started at the full mode: leaving out one block
@@ -107,14 +108,17 @@ def block_factors(problem, mode, keep, scale=None, on_block=None) -> dict | None
         Li = np.linalg.inv(np.linalg.cholesky(0.5 * (cov + cov.T) * S[:, None] * S[None, :]))
     except np.linalg.LinAlgError:
         return None
-    z2, stat, dof = [], 0.0, 0
-    for k in range(len(edges) - 1):
+    def refit(k):  # the mode without block k, and its curvature
         sub = without_block(problem, edges[k], edges[k + 1], k == len(edges) - 2)
         gn_sub = _remembered(gauss_newton_fn(sub))
         x = levenberg_marquardt(gn_sub, mode, STEPS, value_fn(sub))  # (``find_mode``)
         _, _, Hs = gn_sub(x)  # the refit's last step evaluated it there: not again
         if on_block is not None:
             on_block(1)
+        return x, Hs
+
+    z2, stat, dof = [], 0.0, 0
+    for x, Hs in thread_map(refit, range(len(edges) - 1)):  # side by side (``threads``)
         try:
             cov_k = np.linalg.inv(np.asarray(Hs, dtype=float))[np.ix_(keep, keep)]
         except np.linalg.LinAlgError:

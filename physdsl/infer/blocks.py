@@ -1,6 +1,6 @@
 """Many transitions per call: one jitted function advances every chain by up to ``length``
 transitions (a ``fori_loop`` with the count as an argument; chains vmapped on an accelerator,
-one after another on the CPU: ``chains_side_by_side``).
+on the CPU one chain's program called from a thread per chain: ``chains_side_by_side``).
 
 Python dispatches once per block of draws, not once per transition and chain, and no value
 leaves the device in between. The count ``n`` is an argument and the buffers have the fixed
@@ -22,6 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .base import Problem, cached
+from .threads import thread_map
 
 
 def block_runner(problem: Problem, key, transition, length: int):
@@ -48,21 +49,25 @@ def block_runner(problem: Problem, key, transition, length: int):
             return jax.lax.fori_loop(0, n, body, (carry, bufs))
 
         if not chains_side_by_side():
-            def chains(data, keys, carries, shared, n, offset):
-                return jax.lax.map(lambda kc: chain(data, kc[0], kc[1], shared, n, offset),
-                                   (keys, carries))
-            return jax.jit(chains)
+            one = jax.jit(chain)
+
+            def chains(data, keys, carries, shared, n, offset):  # a thread a chain
+                outs = thread_map(lambda c: one(data, keys[c], jax.tree_util.tree_map(
+                    lambda a: a[c], carries), shared, n, offset), range(keys.shape[0]))
+                return jax.tree_util.tree_map(lambda *a: jnp.stack(a), *outs)
+            chains._cache_size = one._cache_size  # its compiles, as a jitted block's
+            return chains
         return jax.jit(jax.vmap(chain, in_axes=(None, 0, 0, None, None, None)))
 
     return cached(problem, ("block", key, length), build)
 
 
 def chains_side_by_side() -> bool:
-    """Whether the chains of a block run vmapped (on an accelerator, in parallel) or one
-    after another (``lax.map``, on the CPU). On the CPU vmapping buys no parallelism, runs
-    every chain to the longest NUTS tree of the lot, and batching the tree's while loops
-    around a rollout cost most of the block's tracing (the README's thrown ball, under a
-    profiler: 40 of 50 s)."""
+    """Whether the chains of a block run vmapped (on an accelerator, in parallel) or each in
+    its own call of a one-chain program, from threads (``threads``, on the CPU: the cores run
+    chains at once). On the CPU vmapping buys no parallelism, runs every chain to the longest
+    NUTS tree of the lot, and batching the tree's while loops around a rollout cost most of
+    the block's tracing (the README's thrown ball, under a profiler: 40 of 50 s)."""
     return jax.default_backend() != "cpu"
 
 

@@ -22,10 +22,11 @@ import numpy as np
 from numpyro.infer.util import constrain_fn, potential_energy
 
 from .backends.map import find_mode, major_modes, remember_modes
-from .base import cached, gauss_newton_fn, value_and_grad_fn
+from .base import cached, gauss_newton_fn, value_and_grad_fn, value_fn
 from .data_starts import data_start
 from .problem import prior_draws_unconstrained, unconstrained_layout, unraveler
 from .spectral_starts import screened_starts
+from .threads import thread_map
 
 SAME_BASIN_SD = 3.0  # modes closer than this many Laplace sd (Mahalanobis) share a basin
 CENTRE_DRAWS = 256  # prior draws whose coordinate-wise median is the prior's centre
@@ -115,8 +116,7 @@ def search(problem, starts, labels, steps: int, on_start=None, key=None) -> Sear
     oscillate, prior draws at the data's frequency (``spectral_starts``, ``key``) are
     optimised too; each that ends better than the worst chain's mode takes that chain. Fits
     that already match the data pay nothing for it (a screen simulates 64 draws)."""
-    modes = np.stack([_optimised(problem, x, steps, on_start, i, labels[i])
-                      for i, x in enumerate(np.asarray(starts))])
+    modes = _optimised_all(problem, np.asarray(starts), steps, on_start, labels, 0)
     lps, rms, curv = _assess(problem, modes)
     all_modes, all_labels = modes, list(labels)
     extra = _frequency_round(problem, starts, labels, lps, rms, steps, key, on_start)
@@ -143,6 +143,21 @@ def _optimised(problem, x, steps, on_start, i, label):
     if on_start is not None:
         on_start(i, label)
     return find_mode(problem, x, steps)
+
+
+def _optimised_all(problem, xs, steps, on_start, labels, first: int) -> np.ndarray:
+    """The modes from starts ``xs`` (numbered from ``first``), optimised side by side
+    (``threads``) once the fit's programs are compiled (by a value and a curvature at the
+    first start: two threads would each compile them)."""
+    if len(xs) > 1:
+        gn, x0 = gauss_newton_fn(problem), jnp.asarray(xs[0])
+        if gn is not None:
+            value_fn(problem)(x0)
+            gn(x0)
+        else:
+            value_and_grad_fn(problem)(x0)
+    return np.stack(thread_map(lambda j: _optimised(problem, xs[j], steps, on_start, first + j,
+                                                    labels[j]), range(len(xs))))
 
 
 def _assess(problem, modes):
@@ -172,8 +187,8 @@ def _frequency_round(problem, starts, labels, lps, rms, steps, key, on_start):
     xs = _screened(problem, key, from_data, SCREENED_STARTS)
     if not xs:
         return None
-    return np.stack([_optimised(problem, x, steps, on_start, len(labels) + j, SCREENED)
-                     for j, x in enumerate(xs)])
+    return _optimised_all(problem, np.asarray(xs), steps, on_start, [SCREENED] * len(xs),
+                          len(labels))
 
 
 def _cluster(problem, modes, lps, rms, curv, labels) -> list[dict]:

@@ -26,7 +26,9 @@ from .base import cached
 from .block_check import BLOCKS
 from .blocks import Pacer
 from .intervals import add_robust, shown_posterior
-from . import posterior_data
+from . import left_out, posterior_data
+from .left_out import REACHED_SITE
+from .threads import split, thread_map, workers
 
 
 PLAIN = "plain"  # Settings.intervals of a fit that shows the model's intervals and makes no
@@ -46,9 +48,11 @@ def build_inference_data(model, problem, flat: np.ndarray, stats: dict, settings
     check's refits), instead of ``on_chunk``.
     """
     chains, samples, _ = flat.shape
+    reached: list = []
     with _stage(stages, "predictions", chains * samples) as st:
         constrained, loglik = posterior_pass(model, problem, flat.reshape(chains * samples, -1),
-                                             st.advance if st is not None else on_chunk)
+                                             st.advance if st is not None else on_chunk, reached)
+    left_out.check(model, reached)
     unknowns = set(model.unknown_names)
     shaped = lambda v: np.asarray(v).reshape(chains, samples, *v.shape[1:])  # noqa: E731
     posterior = {k: shaped(v) for k, v in constrained.items() if k in unknowns}
@@ -84,16 +88,19 @@ def _stage(stages, name: str, total):
         yield st
 
 
-def posterior_pass(model, problem, flat: np.ndarray, on_chunk=None) -> tuple[dict, dict]:
+def posterior_pass(model, problem, flat: np.ndarray, on_chunk=None, reached=None
+                   ) -> tuple[dict, dict]:
     """(constrained sites: the unknowns and the ``pred:`` predictions; pointwise
     log-likelihood by observable) of each row of ``flat`` (draws, dim); ``on_chunk(m)`` after
-    each call of ``m`` draws (a progress bar).
+    each call of ``m`` draws (a progress bar); ``reached`` (a list): each part's per-draw flags
+    of a likelihood that left out contact pairs (``left_out``) are appended to it.
 
-    Where the Problem has ``draw`` (least squares), draws go one by one through it: the fit's
-    own value function (``problem.draw_function``), whose rollout is the scene's one
-    compiled rollout (``model.simulate``, which the fit's quality calls too), so the pass
-    traces and compiles nothing new and costs one rollout a draw, in calls of about
-    ``PASS_CALL_S`` (``blocks.Pacer``). Where the draws left would take over ``VMAP_AFTER_S``
+    Where the Problem has ``draw`` (least squares), draws go one by one through it, from
+    ``threads.workers()`` threads at once: the fit's own value function
+    (``problem.draw_function``), whose rollout is the likelihood's one compiled rollout
+    (``model.fit_simulate``, which the fit's quality calls too), so the pass traces and
+    compiles nothing new and costs one rollout a draw, in calls of about ``PASS_CALL_S``
+    (``blocks.Pacer``). Where the draws left would take over ``VMAP_AFTER_S``
     that way (many long rollouts: a vmapped rollout costs 2-3x less a draw), they go
     ``PASS_CHUNK`` a call through a vmapped program instead, which pays one compile of its
     own (the last call padded). Problems with no ``draw`` always take that one."""
@@ -105,15 +112,21 @@ def posterior_pass(model, problem, flat: np.ndarray, on_chunk=None) -> tuple[dic
             break
         m = pacer.next(n - done, PASS_CHUNK)
         t0 = time.process_time()  # (CPU: a shared machine's load does not decide)
-        outs = jax.device_get([problem.draw(jnp.asarray(x), problem.data)[:2]  # dispatched,
-                               for x in flat[done:done + m]])  # then one wait: calls overlap
+        outs = [o for part in thread_map(lambda xs: jax.device_get(  # each thread's calls
+            [problem.draw(jnp.asarray(x), problem.data)[:2] for x in xs]),  # dispatched, one
+            split(flat[done:done + m], workers())) for o in part]  # wait: the calls overlap
         pacer.record(m, time.process_time() - t0)
-        parts.append(_sites(model, jax.tree_util.tree_map(lambda *a: np.stack(a), *outs)))
+        sites, loglik = jax.tree_util.tree_map(lambda *a: np.stack(a), *outs)
+        if reached is not None and REACHED_SITE in sites:
+            reached.append(sites[REACHED_SITE])
+        parts.append(_sites(model, (sites, loglik)))
         done += m
         if on_chunk is not None:
             on_chunk(m)
     if done < n:
         parts.append(_vmapped_pass(model, problem, flat[done:], on_chunk))
+        if reached is not None and model.ruled_out:
+            reached.append(model.contact_reached({k: parts[-1][0][k] for k in model.unknown_names}))
     return jax.tree_util.tree_map(lambda *a: np.concatenate(a), *parts)
 
 

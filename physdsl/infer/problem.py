@@ -21,6 +21,7 @@ from ..compile import PRED_PREFIX
 from ..errors import InferenceError
 from ..physics.forward import FORWARD_MODE_MAX
 from .base import Problem, cached, gauss_newton, safe_logdensity, value_and_grad_fn
+from .left_out import REACHED_SITE
 
 _PROBLEMS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 INIT_ROUNDS = 10  # rounds of prior draws tried before giving up on a finite start
@@ -80,6 +81,8 @@ def draw_function(model, unravel, neg_log_prior):
         ll = model.pointwise_log_likelihood(values, preds, data)
         lp = sum((jnp.sum(v) for v in ll.values()), -neg_log_prior(x))
         sites = {**values, **{PRED_PREFIX + k: v for k, v in preds.items()}}
+        if model.ruled_out:  # the check of a likelihood without some pairs (``left_out``)
+            sites[REACHED_SITE] = model.reaches_left_out(values, rollout)
         return sites, ll, jnp.where(jnp.isfinite(lp), lp, -jnp.inf)
 
     # in the structure's cache by name, like every compiled stage (shared by other data)

@@ -28,6 +28,7 @@ from .base import Settings, get_backend
 from .blocks import Pacer
 from .init import with_init
 from .interrupt import Interrupted, critical, termination
+from .left_out import ContactReached
 from .multistart import describe, search, start_points
 from .output import build_inference_data, save_run
 from .problem import make_problem, model_problem
@@ -136,44 +137,23 @@ def _run(model, backend, settings, outdir, resume, force, progress, positions, q
 
     flat = np.concatenate(ckpt["draws"], axis=1)  # (chains, samples, dim)
     stats = {k: np.concatenate([s[k] for s in ckpt["stats"]], axis=1) for k in ckpt["stats"][0]}
-    idata = build_inference_data(model, problem, flat, stats, settings, stages=stages)
+    try:
+        idata = build_inference_data(model, problem, flat, stats, settings, stages=stages)
+    except ContactReached:
+        if ckpt_path is not None and ckpt_path.exists():
+            ckpt_path.unlink()  # (the fit runs again with every contact)
+        raise
     if basins:
         idata.attrs["basins"] = json.dumps(basins)
     if not np.all(np.isfinite(flat)):
         raise InferenceError("sampler produced non-finite draws",
                              hint="try --backend rmh or tighter priors")
-    _check_contacts_left_out(model, idata, ckpt_path)
     if out is not None:
         extra = {**_fit_quality(quality, model, idata, stages), **({"basins": basins} if basins else {})}
         save_run(out, model, idata, backend, settings, extra=extra)
         if ckpt_path.exists():
             ckpt_path.unlink()
     return idata
-
-
-class ContactReached(Exception):
-    """A draw of a fit whose likelihood left out the contact pairs the recording rules out came
-    within their reach: the fit runs again with every pair (``Model.with_every_contact``)."""
-
-
-def _check_contacts_left_out(model, idata, ckpt_path) -> None:
-    """Raise ContactReached (its checkpoint removed) where a draw of ``idata`` comes within
-    reach of a contact pair the likelihood left out (``Model.contact_reached``)."""
-    if not model.ruled_out:
-        return
-    post = idata.posterior
-    values = {u.name: np.asarray(post[u.name].values).reshape(-1, *u.shape)
-              for u in model.unknowns}
-    reached = model.contact_reached(values)
-    if reached.any():
-        if ckpt_path is not None and ckpt_path.exists():
-            ckpt_path.unlink()
-        names = model.simulator.body_names
-        pairs = ", ".join(f"({names[model.simulator.model.pairs[k].a]}, "
-                          f"{names[model.simulator.model.pairs[k].b]})" for k in model.ruled_out)
-        raise ContactReached(
-            f"{int(reached.sum())} of {len(reached)} draws come within reach of contact "
-            f"{pairs}, which the recording seemed to rule out: fitting again with every contact")
 
 
 def _warmup(algo, problem, positions, key, settings, stages):

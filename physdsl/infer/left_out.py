@@ -1,0 +1,25 @@
+"""The check of a fit whose likelihood left out the contact pairs the recording rules out
+(``physics.ruled_out``): every draw of its posterior pass must stay out of their reach
+(``Model.reaches_left_out``, ``idle.clear``'s exact rule), else ``ContactReached`` makes
+``infer`` fit again with every pair (``Model.with_every_contact``)."""
+from __future__ import annotations
+
+import numpy as np
+
+REACHED_SITE = "contact_reached:"  # the posterior pass's per-draw flag (not a site of the model)
+
+
+class ContactReached(Exception):
+    """A draw of a fit without the pairs the recording rules out came within their reach."""
+
+
+def check(model, flags) -> None:
+    """Raise ContactReached where any of ``flags`` (one per draw) is set."""
+    reached = np.concatenate([np.atleast_1d(np.asarray(f, bool)) for f in flags]) if flags \
+        else np.zeros(0, bool)
+    if reached.any():
+        names, pairs = model.simulator.body_names, model.simulator.model.pairs
+        which = ", ".join(f"({names[pairs[k].a]}, {names[pairs[k].b]})" for k in model.ruled_out)
+        raise ContactReached(
+            f"{int(reached.sum())} of {len(reached)} draws come within reach of contact {which}, "
+            "which the recording seemed to rule out: fitting again with every contact")
