@@ -6,11 +6,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import InferenceError
+
 REACHED_SITE = "contact_reached:"  # the posterior pass's per-draw flag (not a site of the model)
 
 
-class ContactReached(Exception):
-    """A draw of a fit without the pairs the recording rules out came within their reach."""
+class ContactReached(InferenceError):
+    """A draw of a fit without the pairs the recording rules out came within their reach
+    (``infer`` fits again; anywhere else it is an inference failure, with a hint)."""
 
 
 def check(model, flags) -> None:
@@ -22,4 +25,5 @@ def check(model, flags) -> None:
         which = ", ".join(f"({names[pairs[k].a]}, {names[pairs[k].b]})" for k in model.ruled_out)
         raise ContactReached(
             f"{int(reached.sum())} of {len(reached)} draws come within reach of contact {which}, "
-            "which the recording seemed to rule out: fitting again with every contact")
+            "which the recording seemed to rule out: fitting again with every contact",
+            hint="fit Model.with_every_contact() (physdsl.infer does so by itself)")
