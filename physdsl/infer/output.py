@@ -100,7 +100,7 @@ def posterior_pass(model, problem, flat: np.ndarray, on_chunk=None, reached=None
     (``problem.draw_function``), whose rollout is the likelihood's one compiled rollout
     (``model.fit_simulate``, which the fit's quality calls too), so the pass traces and
     compiles nothing new and costs one rollout a draw, in calls of about ``PASS_CALL_S``
-    (``blocks.Pacer``). Where the draws left would take over ``VMAP_AFTER_S``
+    (``blocks.Pacer``). Where the draws left would take over ``vmap_after`` CPU seconds
     that way (many long rollouts: a vmapped rollout costs 2-3x less a draw), they go
     ``PASS_CHUNK`` a call through a vmapped program instead, which pays one compile of its
     own (the last call padded). Problems with no ``draw`` always take that one."""
@@ -108,7 +108,7 @@ def posterior_pass(model, problem, flat: np.ndarray, on_chunk=None, reached=None
     parts, done = [], 0
     pacer = Pacer(PASS_CALL_S)
     while problem.draw is not None and done < n:
-        if pacer.per is not None and pacer.per * (n - done) > VMAP_AFTER_S:
+        if pacer.per is not None and pacer.per * (n - done) > vmap_after(model):
             break
         m = pacer.next(n - done, PASS_CHUNK)
         t0 = time.process_time()  # (CPU: a shared machine's load does not decide)
@@ -133,11 +133,20 @@ def posterior_pass(model, problem, flat: np.ndarray, on_chunk=None, reached=None
 PASS_CALL_S = 1.0  # CPU seconds per call of the one-by-one pass (a progress step)
 VMAP_AFTER_S = 80.0  # CPU seconds of one-by-one draws left beyond which the rest are
 # vmapped: a vmapped draw costs 1/2-1/3 of one by one (chain_hit 14 vs 30 ms, the double
-# pendulum 45 vs 155 ms), so its compile (39 s on chain_hit) pays off beyond about twice that
+# pendulum 45 vs 155 ms, the pendulum 30 vs 62 ms), so its compile (39 s on chain_hit)
+# pays off beyond about twice that
+VMAP_AFTER_FREE_S = 10.0  # the same where the likelihood simulates no contact: the
+# pendulum's vmapped program compiles in 5.6 s (10 000 steps)
+
+
+def vmap_after(model) -> float:
+    """CPU seconds of one-by-one draws left beyond which the posterior pass vmaps the rest."""
+    return VMAP_AFTER_S if model.likelihood_simulator.model.ncon else VMAP_AFTER_FREE_S
 
 
 def _vmapped_pass(model, problem, flat: np.ndarray, on_chunk=None) -> tuple[dict, dict]:
-    """``posterior_pass`` by a vmapped program, ``PASS_CHUNK`` draws a call (the last padded)."""
+    """``posterior_pass`` by a vmapped program, ``PASS_CHUNK`` draws a call (the last padded),
+    the calls after the first (which compiles) from threads."""
     def one(x, data):
         c = problem.to_constrained(x, data)
         values = {k: c[k] for k in model.unknown_names}
@@ -146,17 +155,20 @@ def _vmapped_pass(model, problem, flat: np.ndarray, on_chunk=None) -> tuple[dict
 
     fn = cached(problem, ("posterior-pass", PASS_CHUNK),
                 lambda: jax.jit(jax.vmap(one, in_axes=(0, None))))
-    n = flat.shape[0]
-    parts = []
-    for i in range(0, n, PASS_CHUNK):
+    def call(i):
         x = flat[i:i + PASS_CHUNK]
         m = x.shape[0]
         if m < PASS_CHUNK:
             x = np.concatenate([x, np.repeat(x[-1:], PASS_CHUNK - m, axis=0)])
         out = fn(jnp.asarray(x), problem.data)
-        parts.append(_sites(model, jax.tree_util.tree_map(lambda a, m=m: np.asarray(a)[:m], out)))
+        out = _sites(model, jax.tree_util.tree_map(lambda a: np.asarray(a)[:m], out))
         if on_chunk is not None:
             on_chunk(m)
+        return out
+
+    starts = list(range(0, flat.shape[0], PASS_CHUNK))
+    # the first call compiles; the rest side by side (``threads``)
+    parts = [call(starts[0])] + thread_map(call, starts[1:])
     return jax.tree_util.tree_map(lambda *a: np.concatenate(a), *parts)
 
 

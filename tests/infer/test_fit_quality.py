@@ -80,7 +80,7 @@ def test_a_start_far_from_the_first_samples_is_flagged(projectile_model, good):
 def test_posterior_pass_one_by_one_equals_vmapped(projectile_model, good, monkeypatch):
     """The pass through the fit's own value function (one draw a call, the scene's one
     compiled rollout) gives the vmapped pass's numbers, also where it hands the draws left to
-    the vmapped pass (long rollouts: ``VMAP_AFTER_S``) in calls of ``PASS_CHUNK``; and that
+    the vmapped pass (long rollouts: ``vmap_after``) in calls of ``PASS_CHUNK``; and that
     value function is the log density."""
     import jax
     from physdsl.infer import output
@@ -96,6 +96,7 @@ def test_posterior_pass_one_by_one_equals_vmapped(projectile_model, good, monkey
     assert sum(seen) == 20 and seen[:2] == [1, 1]  # the first two calls time a draw
     vmapped = output.posterior_pass(projectile_model, problem._replace(draw=None), flat)
     monkeypatch.setattr(output, "VMAP_AFTER_S", 0.0)  # every rollout counts as long
+    monkeypatch.setattr(output, "VMAP_AFTER_FREE_S", 0.0)
     monkeypatch.setattr(output, "PASS_CHUNK", 7)
     mixed_seen = []
     mixed = output.posterior_pass(projectile_model, problem, flat, on_chunk=mixed_seen.append)
