@@ -72,7 +72,8 @@ def draw_function(model, unravel, neg_log_prior):
 
     Three compiled parts: constraining (no physics), the scene's rollout itself
     (``model.fit_simulate``: the likelihood's Simulator's one compiled rollout, which the fit's
-    quality and ``check`` call too) and the predictions and likelihood read off it (no physics). The log
+    quality and ``check`` call too) and the predictions and likelihood read off it (no
+    physics; with the check of the contact pairs the likelihood leaves out). The log
     density is the Gauss-Newton function's (``least_squares_parts``; -inf where not finite),
     so the fit's value function is this one (``base.value_fn``) and the posterior pass
     (``output.posterior_pass``) reuses its compiled rollout instead of tracing another."""

@@ -64,10 +64,12 @@ def _side(scene: Scene, model: PhysicsModel, i: int, end: float):
     if joint.kind == "fixed" and joint.parent < 0:
         if _refs([body.position, body.orientation]):
             return None
-        point = np.zeros(3) if body.position is None else np.asarray(evaluate(body.position, {}), float)
+        point = (np.zeros(3) if body.position is None
+                 else np.asarray(evaluate(body.position, {}), float))
         if shape.kind == "plane":
             return _Side(point=point, normal=csize / np.linalg.norm(csize))
-        return _Side(point=point, radius=float(bounding_radius(shape.kind, csize)))  # turns freely
+        # (a bounding sphere: the body's orientation does not matter)
+        return _Side(point=point, radius=float(bounding_radius(shape.kind, csize)))
     if joint.kind != "free" or joint.parent >= 0 or shape.kind == "plane":
         return None
     track = _measured_track(scene, body.name, model.dt, end)
@@ -76,7 +78,8 @@ def _side(scene: Scene, model: PhysicsModel, i: int, end: float):
     times, pos, sigma = track
     gaps = np.diff(times)
     slack = CLEARANCE_SIGMAS * sigma + ACCEL_BOUND * float(gaps.max(initial=0.0)) ** 2 / 8
-    return _Side(track=pos, times=times, radius=float(bounding_radius(shape.kind, csize)), slack=slack)
+    return _Side(track=pos, times=times, radius=float(bounding_radius(shape.kind, csize)),
+                 slack=slack)
 
 
 def _measured_track(scene: Scene, body: str, dt: float, end: float):
