@@ -30,7 +30,7 @@ from .expr import evaluate, references
 from .observe import sensor, trajectory
 from .physics import build_simulator
 from .physics.idle import clear
-from .physics.ruled_out import ruled_out_pairs
+from .physics.ruled_out import ruled_out_pairs, without_pairs
 from .render.likelihood import scene_image_log_likelihood
 from .scene import Observation, Prior, Scene, Unknown
 from .syntax import load, loads
@@ -171,14 +171,6 @@ class Compiled:
         self.likelihood_simulator = self.simulator if not ruled_out else build_simulator(
             without_pairs(scene, self.simulator.model, ruled_out))
         self.cache: dict = {}
-
-
-def without_pairs(scene: Scene, model, pairs: tuple[int, ...]) -> Scene:
-    """``scene`` without the contact pairs ``pairs`` (indices into ``model.pairs``)."""
-    names = model.body_names
-    drop = {frozenset((names[model.pairs[k].a], names[model.pairs[k].b])) for k in pairs}
-    return dataclasses.replace(scene, contact_pairs=tuple(
-        p for p in scene.contact_pairs if frozenset(p) not in drop))
 
 
 # structure key -> Compiled, alive while some Model holds it

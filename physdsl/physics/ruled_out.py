@@ -10,6 +10,9 @@ and run again with every contact where a draw comes within reach.
 """
 from __future__ import annotations
 
+import dataclasses
+from typing import NamedTuple
+
 import numpy as np
 
 from ..expr import evaluate, references
@@ -46,13 +49,16 @@ def ruled_out_pairs(scene: Scene, model: PhysicsModel, until: float | None = Non
     return tuple(out)
 
 
-class _Side:
+class _Side(NamedTuple):
     """One body of a pair as the recording sees it: a measured track (times, positions, the
     clearance it must keep) or a constant point; its bounding radius; a plane's normal."""
 
-    def __init__(self, track=None, times=None, point=None, radius=0.0, normal=None, slack=0.0):
-        self.track, self.times, self.point, self.radius, self.normal, self.slack = \
-            track, times, point, radius, normal, slack
+    track: np.ndarray | None = None
+    times: np.ndarray | None = None
+    point: np.ndarray | None = None
+    radius: float = 0.0
+    normal: np.ndarray | None = None
+    slack: float = 0.0
 
 
 def _side(scene: Scene, model: PhysicsModel, i: int, end: float):
@@ -117,3 +123,12 @@ def _gap(a: _Side, b: _Side):
 def _refs(exprs) -> bool:
     """Whether any of ``exprs`` names an unknown (after resolve, only unknowns are names)."""
     return any(references(e) for e in exprs if e is not None)
+
+
+def without_pairs(scene: Scene, model: PhysicsModel, pairs: tuple[int, ...]) -> Scene:
+    """``scene`` without the contact pairs ``pairs`` (indices into ``model.pairs``): the scene
+    the likelihood simulates."""
+    names = model.body_names
+    drop = {frozenset((names[model.pairs[k].a], names[model.pairs[k].b])) for k in pairs}
+    return dataclasses.replace(scene, contact_pairs=tuple(
+        p for p in scene.contact_pairs if frozenset(p) not in drop))

@@ -50,8 +50,8 @@ def test_a_nuts_warmup_traces_the_rollout_once(tmp_path):
 
 def test_chains_side_by_side_or_one_after_another_give_the_same_draws(projectile_model,
                                                                       monkeypatch):
-    """The CPU runs a block's chains with ``lax.map``, an accelerator vmaps them
-    (``blocks.chains_side_by_side``): the same keys give the same NUTS draws either way."""
+    """The CPU runs each of a block's chains from a thread of its own, an accelerator vmaps
+    them (``blocks.chains_side_by_side``): the same keys give the same NUTS draws either way."""
     from physdsl.infer import blocks
 
     settings = Settings(chains=2, warmup=20, samples=5)

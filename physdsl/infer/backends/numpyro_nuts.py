@@ -3,7 +3,8 @@
 Used as a peer of blackjax NUTS (benchmarks, cross-checks). numpyro's ``sample_kernel``
 adapts (dual averaging + mass matrix, dense unless ``Settings.dense_mass`` is off) while its iteration count is below
 ``settings.warmup`` and samples after, so one compiled block of transitions
-(``physdsl.infer.blocks``: chains vmapped on an accelerator, one after another on the CPU; the data passed as the kernel's model argument)
+(``physdsl.infer.blocks``: chains vmapped on an accelerator, a thread a chain on the CPU;
+the data passed as the kernel's model argument)
 serves both stages. Chains start from states built with the Problem's compiled
 value-and-gradient (``ParamInfo``), so initialisation compiles nothing else.
 """
