@@ -16,7 +16,9 @@ the vectorised ``physics/tree.py`` replaced, as ``recursive_*``) and ``contact_s
 compile_cpu_s, growth_exponent (time per step ~ N^k between the smallest and largest N).
 ``--scaling``: those lines alone; ``--profile``: per-stage microseconds per step
 (``benchmarks/step_profile.py``). Compile figures are true compilations: the persistent cache is
-off (``PHYSDSL_CACHE_DIR=off`` unless set).
+off (``PHYSDSL_CACHE_DIR=off`` unless set). Ours, the gradient and MuJoCo are timed side by side
+(``side_by_side``: each the best of 5 rounds that take them in turn), so a ratio does not mix
+figures taken minutes apart on a machine whose clock drifts.
 
 Steps/s do not depend on the horizon, so each scene and batch size has its own, chosen so the
 whole script fits the budget; ``horizon_steps.*`` lines say which.
@@ -180,11 +182,16 @@ def bench(name):
     moving = sum(1 for j in sim.model.joints if j.nv)
     print(f"horizon_steps.{name}: {nsteps}")
     print(f"compile_cpu_s.{name}: {t_c:.1f}")
-    print(f"steps_per_s.{name}: {nsteps / t_f:.0f}", flush=True)
     loss = jax.grad(lambda v: jnp.sum(sim.simulate(v).body_pos[:, :, 2]))
     grad, t_gc = compile_cpu_s(jax.jit(loss), vals)
+    model = mujoco.MjModel.from_xml_string(rollout(name, 1)[3])
+    t_f, t_g, t_mj = side_by_side([lambda: contact.timed(fwd, vals, repeat=3),
+                                   lambda: contact.timed(grad, vals, repeat=3),
+                                   lambda: mujoco_seconds_per_step(model)])
+    rate = 1.0 / t_mj
+    print(f"steps_per_s.{name}: {nsteps / t_f:.0f}", flush=True)
     print(f"grad_compile_cpu_s.{name}: {t_gc:.1f}")
-    print(f"grad_over_forward.{name}: {contact.timed(grad, vals, repeat=3) / t_f:.2f}", flush=True)
+    print(f"grad_over_forward.{name}: {t_g / t_f:.2f}", flush=True)
     t_bc = 0.0
     for n, steps in SCENES[name][2].items():
         bsim, bvals, key, _ = rollout(name, steps)
@@ -201,7 +208,6 @@ def bench(name):
         print(f"horizon_steps.batch{n}.{name}: {steps}")
         print(f"batch{n}_body_steps_per_s.{name}: {n * moving * steps / t_b:.0f}", flush=True)
     print(f"batch_compile_cpu_s.{name}: {t_bc:.1f}")
-    rate = mujoco_rate(rollout(name, 1)[3])
     print(f"mujoco_steps_per_s.{name}: {rate:.0f}")
     print(f"mujoco_body_steps_per_s.{name}: {rate * moving:.0f}")
     print(f"ours_over_mujoco_steps.{name}: {nsteps / t_f / rate:.3f}", flush=True)
@@ -223,17 +229,21 @@ def scaling(kind, builder, sizes, steps, recursive=False):
         s, xml, vals, _ = builder(n, steps)
         vals = values_of(vals)
         paths = [("", tree.TREE_MAX)] + ([("recursive_", -1)] if recursive else [])
+        fns = []
         for label, tmax in paths:
             tree.TREE_MAX, keep = tmax, tree.TREE_MAX
             sim = build_simulator(s)
             f, t_c = compile_cpu_s(jax.jit(lambda v, sim=sim: sim.simulate(v).body_pos), vals)
             tree.TREE_MAX = keep
-            t = contact.timed(f, vals, repeat=3)
+            print(f"{kind}_scaling.{label}compile_cpu_s.{n}: {t_c:.1f}")
+            fns.append(lambda f=f: contact.timed(f, vals, repeat=3))
+        model = mujoco.MjModel.from_xml_string(xml)
+        *times, t_mj = side_by_side(fns + [lambda: mujoco_seconds_per_step(model)])
+        for (label, _), t in zip(paths, times):
             per_step[label, n] = t / steps
             print(f"{kind}_scaling.{label}steps_per_s.{n}: {steps / t:.0f}")
-            print(f"{kind}_scaling.{label}compile_cpu_s.{n}: {t_c:.1f}")
-        rate = mujoco_rate(xml)
-        per_step["mujoco_", n] = 1.0 / rate
+        rate = 1.0 / t_mj
+        per_step["mujoco_", n] = t_mj
         print(f"{kind}_scaling.mujoco_steps_per_s.{n}: {rate:.0f}")
         print(f"{kind}_scaling.ours_over_mujoco.{n}: {1 / (rate * per_step['', n]):.3f}",
               flush=True)
@@ -256,17 +266,31 @@ def profile():
             print(f"profile.{kind}{n}.{stage}{unit}: {us:.2f}", flush=True)
 
 
-def mujoco_rate(xml, steps=5000):
-    """mj_step calls per second (best of 3 runs of ``steps`` from the initial state)."""
-    m = mujoco.MjModel.from_xml_string(xml)
+# rounds of ``side_by_side``: each figure is its best over this many rounds, taken in turn
+ROUNDS = 5
+
+
+def side_by_side(timers, rounds=ROUNDS):
+    """Each timer's best over ``rounds`` rounds that call every timer in turn: on this shared
+    machine the clock rate drifts over seconds, and figures taken minutes apart (ours, then
+    MuJoCo's) moved a ratio by 1.6x between two runs of the same code."""
+    best = [np.inf] * len(timers)
+    for _ in range(rounds):
+        for k, timer in enumerate(timers):
+            best[k] = min(best[k], timer())
+    return best
+
+
+def mujoco_seconds_per_step(model, steps=2000):
+    """Seconds per mj_step call (best of 3 runs of ``steps`` from the initial state)."""
     best = np.inf
     for _ in range(3):
-        d = mujoco.MjData(m)
+        d = mujoco.MjData(model)
         t0 = time.perf_counter()
         for _ in range(steps):
-            mujoco.mj_step(m, d)
+            mujoco.mj_step(model, d)
         best = min(best, time.perf_counter() - t0)
-    return steps / best
+    return best / steps
 
 
 def float32_main(out_dir: str):
