@@ -100,7 +100,8 @@ def test_posterior_pass_one_by_one_equals_vmapped(projectile_model, good, monkey
     monkeypatch.setattr(output, "PASS_CHUNK", 7)
     mixed_seen = []
     mixed = output.posterior_pass(projectile_model, problem, flat, on_chunk=mixed_seen.append)
-    assert mixed_seen == [1, 1, 7, 7, 4]
+    # the first two time a draw; the vmapped chunks run on threads and report as they finish
+    assert mixed_seen[:2] == [1, 1] and sorted(mixed_seen[2:]) == [4, 7, 7]
     assert set(one_by_one[0]) == set(vmapped[0]) == {"ball.velocity", "linear_drag@ball.coefficient",
                                                       "pred:ball.position"}
     leaves = [jax.tree_util.tree_leaves(t) for t in (one_by_one, vmapped, mixed)]
