@@ -216,7 +216,7 @@ def dof_forces(model: PhysicsModel, kin: Kin, f):
     """Generalized forces of spatial forces f (B, 6) at the origin on each body: S_j . (A^T f)."""
     _, A, dof_body, _, _, _ = _tables(model)
     # (B, 6) each body's subtree total, as a dot: a fused sum would be inlined into the gather
-    # and sum below and recomputed per dof (measured: 1.2 of chain10's 16 us per step)
+    # and sum below and recomputed per dof (measured: chain10's step 16.6 -> 14.1 us)
     sub = jnp.dot(jnp.asarray(A.T, f.dtype), f)
     S = _dof_columns(model, kin)
     return jnp.sum(S * sub[dof_body], -1)
