@@ -60,31 +60,6 @@ def observe(model: PhysicsModel, prm: dict, q, v):
     return kin.pos, kin.quat, lin, w, stack(jp), stack(jv)
 
 
-# XLA CPU runs a loop body's kernels one after another in the calling thread when every buffer
-# they touch holds at most this many bytes, else through its concurrent executor, whose
-# scheduling costs more than a small kernel does on a 2-core machine (its options are fixed
-# in XLA, no flag reaches them)
-SEQUENTIAL_BYTES = 512
-
-
-def record_chunk(model: PhysicsModel) -> int:
-    """Recorded steps per inner loop of a jointed scene's rollout (1: one flat loop).
-
-    A flat scan writes each state into the whole trajectory's (T, ...) arrays, buffers far
-    over ``SEQUENTIAL_BYTES``, so every step goes through XLA's concurrent executor. Chunks
-    whose own trajectory slices stay under it run sequentially where the step's own arrays do
-    too: single-body trees (a 6x6 spatial inertia is 288 bytes; two bodies' already exceed
-    it). Measured on the pendulum (1 hinge, RK4, 2000 steps): 4.5 -> 2.6 us a step, its
-    forward-mode gradient 22.1 -> 8.5 us, outputs bit-equal; on chain10 no gain (its own
-    arrays are large). Free-body scenes keep one loop (their paths are cheaper still, and the
-    forward-mode analysis prunes tangents of a flat loop alone)."""
-    itemsize = jnp.dtype(jnp.result_type(float)).itemsize
-    if model.free_bodies is not None or model.nbody * 36 * itemsize > SEQUENTIAL_BYTES:
-        return 1
-    per_step = itemsize * (model.nq + model.nv + 4 * model.ncon)
-    return max(1, SEQUENTIAL_BYTES // per_step)
-
-
 class Simulator:
     """Compiled simulation of one Scene; ``simulate`` is pure in ``values`` and jit/vmap/grad-able."""
 
@@ -116,7 +91,7 @@ class Simulator:
                    jnp.zeros((C, 3), dtype))
         # not checkpointed: differentiated in forward mode alone (``integrate.either``)
         traj = self._scan(lambda s, t, h: step(model, prm, s, t, h, not checkpoint), s0,
-                          checkpoint, record_chunk(model))
+                          checkpoint)
         return traj.q, traj.v, traj.contact_force
 
     def _translation(self, prm: dict, checkpoint: bool) -> central.Translation:
@@ -133,10 +108,9 @@ class Simulator:
         _, s0 = central.split(model, prm["q0"], prm["v0"])
         return self._scan(lambda s, t, h: central.rotation_step(model, prm, s, h), s0, checkpoint)
 
-    def _scan(self, advance, s0, checkpoint: bool, chunk: int = 1):
+    def _scan(self, advance, s0, checkpoint: bool):
         """``s0`` and the state after each recorded step (pytree of (T+1, ...) leaves), by
-        ``advance(state, t, h)`` over the model's substeps; ``chunk`` > 1: an outer scan over
-        chunks of that many recorded steps, each an inner scan (``record_chunk``)."""
+        ``advance(state, t, h)`` over the model's substeps."""
         model = self.model
         h = model.dt / model.substeps
         ns = model.substeps
@@ -153,19 +127,7 @@ class Simulator:
 
         if checkpoint:
             record = jax.checkpoint(record)
-        n_chunks, rest = divmod(model.nsteps, chunk)
-        if chunk == 1 or n_chunks < 2:
-            _, traj = jax.lax.scan(record, s0, jnp.arange(model.nsteps))
-        else:
-            def inner(state, first):
-                return jax.lax.scan(record, state, first + jnp.arange(chunk))
-
-            state, traj = jax.lax.scan(inner, s0, chunk * jnp.arange(n_chunks))
-            traj = jax.tree_util.tree_map(lambda a: a.reshape((n_chunks * chunk,) + a.shape[2:]),
-                                          traj)
-            if rest:
-                _, tail = jax.lax.scan(record, state, n_chunks * chunk + jnp.arange(rest))
-                traj = jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a, b]), traj, tail)
+        _, traj = jax.lax.scan(record, s0, jnp.arange(model.nsteps))
         return jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a[None], b]), s0, traj)
 
     def _simulate(self, values, fields=None) -> Rollout:
