@@ -112,7 +112,8 @@ def _joint_motions(model: PhysicsModel, prm: dict, q):
         qJ = jnp.where(free, quat_mul(qb, ref_q * jnp.array([1.0, -1.0, -1.0, -1.0], q.dtype)), qJ)
     if "hinge" in kinds and kinds <= {"hinge", "slider", "fixed"}:
         # Rodrigues' formula: no quaternion-to-matrix conversion (fewer kernels per step)
-        c, s = jnp.cos(jnp.where(hinge[:, 0], th, 0.0)), jnp.sin(jnp.where(hinge[:, 0], th, 0.0))
+        angle = jnp.where(hinge[:, 0], th, 0.0)
+        c, s = jnp.cos(angle), jnp.sin(angle)
         aa = a[:, :, None] * a[:, None, :]
         RJ = (c[:, None, None] * jnp.eye(3, dtype=q.dtype) + s[:, None, None] * skew(a)
               + (1.0 - c)[:, None, None] * aa)
@@ -173,16 +174,13 @@ def tree_kinematics(model: PhysicsModel, prm: dict, q, v) -> Kin:
     rot = mm(R, quat_to_mat(prm["ref_quat"]))
     pos = mv(R, prm["ref_pos"]) + tD
     vb = jnp.concatenate([v, jnp.zeros(1, q.dtype)])[vidx]  # (B, K)
-    if own.any():  # a free joint's rotation columns turn with the body itself
-        Sv_par = jnp.sum(S * jnp.where(own, 0.0, vb)[:, None, :], -1)
-        Sv_own = jnp.sum(S * jnp.where(own, vb, 0.0)[:, None, :], -1)
-        vel = _static_mm(A, Sv_par + Sv_own)
-        vel_p = jnp.concatenate([vel, jnp.zeros((1, 6), vel.dtype)])[par]
-        c = _cross_motion(vel_p, Sv_par) + _cross_motion(vel, Sv_own)
-    else:
-        Sv = jnp.sum(S * vb[:, None, :], -1)
-        vel = _static_mm(A, Sv)
-        c = _cross_motion(jnp.concatenate([vel, jnp.zeros((1, 6), vel.dtype)])[par], Sv)
+    Sv_par = jnp.sum(S * jnp.where(own, 0.0, vb)[:, None, :], -1)
+    # a free joint's rotation columns turn with the body itself (traced only where one exists)
+    Sv_own = jnp.sum(S * jnp.where(own, vb, 0.0)[:, None, :], -1) if own.any() else None
+    vel = _static_mm(A, Sv_par if Sv_own is None else Sv_par + Sv_own)
+    c = _cross_motion(jnp.concatenate([vel, jnp.zeros((1, 6), vel.dtype)])[par], Sv_par)
+    if Sv_own is not None:
+        c = c + _cross_motion(vel, Sv_own)
     acc0 = _static_mm(A, c)
     S_dof = S[dof_body, :, dof_col]  # (nv, 6)
     jac = A[:, None, dof_body] * S_dof.T[None]  # (B, 6, nv)
