@@ -8,7 +8,9 @@ that many scenes: moving bodies x steps per second; ``batch1024_vmap_chunk`` say
 lanes run as lax.map over vmapped chunks), mujoco_steps_per_s and
 mujoco_body_steps_per_s (mj_step on the same scene, one thread), float32_speedup (float64 /
 float32 rollout time, PHYSDSL_FLOAT32=1 in a subprocess) and float32_max_pos_err_m (largest
-body-position difference between the float32 and float64 rollouts over the horizon). Then
+body-position difference between the float32 and float64 rollouts over the horizon),
+one_kernel_loop (1: XLA compiled the rollout's loop into one kernel, ``physdsl/xla_flags.py``;
+0: a call per operation; run with PHYSDSL_XLA_FLAGS=off for the latter everywhere). Then
 benchmarks/contact.py's lines (LCP solve, implicit / unrolled / finite-difference gradients).
 Then ``chain_scaling.*.N`` (N hinged links, N = 2, 5, 10, 20; also the recursive tree algorithms
 the vectorised ``physics/tree.py`` replaced, as ``recursive_*``) and ``contact_scaling.*.N``
@@ -181,6 +183,8 @@ def bench(name):
     moving = sum(1 for j in sim.model.joints if j.nv)
     print(f"horizon_steps.{name}: {nsteps}")
     print(f"compile_cpu_s.{name}: {t_c:.1f}")
+    # 1: XLA compiled the rollout loop into one kernel (physdsl/xla_flags.py), 0: a call per op
+    print(f"one_kernel_loop.{name}: {int('xla_cpu_small_call' in fwd.as_text())}")
     loss = jax.grad(lambda v: jnp.sum(sim.simulate(v).body_pos[:, :, 2]))
     grad, t_gc = compile_cpu_s(jax.jit(loss), vals)
     model = mujoco.MjModel.from_xml_string(rollout(name, 1)[3])

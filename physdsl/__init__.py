@@ -17,7 +17,11 @@ import types as _types
 import warnings
 from importlib import import_module as _import
 
-import jax
+from . import xla_flags as _xla_flags
+
+_xla_flags.configure()  # before JAX's backend starts: whole rollout loops as one kernel
+
+import jax  # noqa: E402
 
 # arviz 0.2x announces its coming refactor on import; it is not news to our users.
 warnings.filterwarnings("ignore", message="ArviZ is undergoing", category=FutureWarning)

@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 import numpy as np
-from jax.scipy.linalg import cho_factor, cho_solve
 
+from .dense import spd_solve
 from .kinematics import Kin
 from .spatial import (cross_force, mm, mv, normalize, quat_axis_angle, quat_mul,
                       quat_to_mat, skew, spatial_inertia)
@@ -245,7 +245,7 @@ def _inertial(kin: Kin):
 
 def tree_accel(model: PhysicsModel, kin: Kin, load, tau=None):
     """qdd = M^-1 (tau + J^T f - bias) by one Cholesky solve (the applied and inertial forces
-    summed over subtrees in one product)."""
+    summed over subtrees in one product), written out (``dense``: no LAPACK call in the loop)."""
     f = jnp.concatenate([load.torque + jnp.cross(kin.com, load.force), load.force], -1)
     gen = load.joint + dof_forces(model, kin, f - _inertial(kin))
     if tau is not None:
@@ -253,7 +253,7 @@ def tree_accel(model: PhysicsModel, kin: Kin, load, tau=None):
     M = tree_mass_matrix(model, kin)
     if model.nv == 1:
         return gen / M[0]
-    return cho_solve(cho_factor(M), gen)
+    return spd_solve(M, gen)
 
 
 def _dof_columns(model: PhysicsModel, kin: Kin):

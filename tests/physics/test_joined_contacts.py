@@ -140,7 +140,7 @@ def test_rk4_scene_still_bounces():
 
 def test_batched_contact_steps_equal_unbatched():
     """Under vmap the contact step runs only where some member has a contact near
-    (``integrate._either``): a batch of one ball that bounces and one that never reaches the
+    (``integrate.either``): a batch of one ball that bounces and one that never reaches the
     floor gives each member's own rollout and forward-mode derivative."""
     import jax
     import jax.numpy as jnp
@@ -148,7 +148,7 @@ def test_batched_contact_steps_equal_unbatched():
     ball = sphere("ball", 0.05, 0.06, (0, 0, "z0"), vel=(0, 0, "w0"))
     eff = [gravity(), effect("restitution", ("floor", "ball"), coefficient=0.8)]
     sim = build_simulator(scene([floor(), ball], effects=eff, contact_pairs=[("floor", "ball")],
-                                dt=1e-3, duration=0.4, integrator="rk4"))
+                                dt=1e-3, duration=0.4, integrator="semi_implicit_euler"))
 
     def z(p):
         return sim.simulate({"z0": p[0], "w0": p[1]}).body_pos[:, 1, 2]
