@@ -35,6 +35,13 @@ def with_options(flags: str) -> str:
     return " ".join([flags.strip(), *extra]).strip()
 
 
+def in_effect(environ=os.environ) -> bool:
+    """Whether ``XLA_FLAGS`` holds every one of ``OPTIONS`` (physdsl's or the user's values):
+    rollout loops without a library call then run as one kernel each."""
+    flags = environ.get("XLA_FLAGS", "")
+    return with_options(flags) == flags.strip()
+
+
 def configure(environ=os.environ) -> None:
     """Add ``OPTIONS`` to ``environ["XLA_FLAGS"]`` unless ``PHYSDSL_XLA_FLAGS=off``."""
     if environ.get(ENV, "").strip().lower() in ("off", "0", "false", "no"):

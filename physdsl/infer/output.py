@@ -17,7 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 import numpyro
 
-from .. import io
+from .. import io, xla_flags
 from ..compile import OBS_PREFIX, PRED_PREFIX
 from ..errors import UsageError
 from ..pooled import component_labels, experiment_dims
@@ -140,8 +140,13 @@ VMAP_AFTER_FREE_S = 10.0  # the same where the likelihood simulates no contact: 
 
 
 def vmap_after(model) -> float:
-    """CPU seconds of one-by-one draws left beyond which the posterior pass vmaps the rest."""
-    return VMAP_AFTER_S if model.likelihood_simulator.model.ncon else VMAP_AFTER_FREE_S
+    """CPU seconds of one-by-one draws left beyond which the posterior pass vmaps the rest.
+    Never for a contact-free scene whose rollout loop runs as one kernel (``xla_flags``): there
+    a draw costs no more one by one than vmapped, and the vmapped program's compile is saved
+    (the pendulum's refine: 42 s of its compile)."""
+    if model.likelihood_simulator.model.ncon:
+        return VMAP_AFTER_S
+    return np.inf if xla_flags.in_effect() else VMAP_AFTER_FREE_S
 
 
 def _vmapped_pass(model, problem, flat: np.ndarray, on_chunk=None) -> tuple[dict, dict]:
