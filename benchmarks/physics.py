@@ -232,6 +232,8 @@ def scaling(kind, builder, sizes, steps, recursive=False):
         s, xml, vals, _ = builder(n, steps)
         vals = values_of(vals)
         paths = [("", tree.TREE_MAX)] + ([("recursive_", -1)] if recursive else [])
+        # the tree path at every size (a few dofs would otherwise take the recursive one)
+        tree.RECURSIVE_MAX, keep_recursive = 0, tree.RECURSIVE_MAX
         fns = []
         for label, tmax in paths:
             tree.TREE_MAX, keep = tmax, tree.TREE_MAX
@@ -240,6 +242,7 @@ def scaling(kind, builder, sizes, steps, recursive=False):
             tree.TREE_MAX = keep
             print(f"{kind}_scaling.{label}compile_cpu_s.{n}: {t_c:.1f}")
             fns.append(lambda f=f: contact.timed(f, vals, repeat=3))
+        tree.RECURSIVE_MAX = keep_recursive
         model = mujoco.MjModel.from_xml_string(xml)
         *times, t_mj = side_by_side(fns + [lambda: mujoco_seconds_per_step(model)])
         for (label, _), t in zip(paths, times):

@@ -17,6 +17,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
+from .. import xla_flags
 from .dense import spd_solve
 from .kinematics import Kin
 from .spatial import (cross_force, mm, mv, normalize, quat_axis_angle, quat_mul,
@@ -30,9 +31,19 @@ TREE_MAX = 64
 FUSED_MM_MAX = 4096
 
 
+# at most this many dofs, a contact-free tree whose rollout loop runs as one kernel
+# (``xla_flags``) takes the recursive algorithms: with no cost per operation their fewer flops
+# win (side by side, us/step: pendulum case 4.36 -> 1.66, cart-pole 8.28 -> 2.17, chain5
+# 4.66 -> 2.11); above it their compile grows too fast (chain10 forward 5.4 -> 17.3 CPU s)
+RECURSIVE_MAX = 5
+
+
 def applies(model: PhysicsModel) -> bool:
-    """A jointed tree small enough for the vectorised path (free-body scenes have their own)."""
-    return model.nbody > 0 and model.nv <= TREE_MAX
+    """A jointed tree small enough for the vectorised path (free-body scenes have their own),
+    and not one the recursive algorithms run faster (``RECURSIVE_MAX``)."""
+    if model.nbody == 0 or model.nv > TREE_MAX:
+        return False
+    return not (model.ncon == 0 and model.nv <= RECURSIVE_MAX and xla_flags.in_effect())
 
 
 def _tables(model: PhysicsModel):
