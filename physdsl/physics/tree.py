@@ -8,9 +8,11 @@ from D_i alone (a hinge's axis and anchor are fixed by its own motion), spatial 
 bias accelerations and Jacobians from the static ancestor matrix A (A[i, j] = 1 where j is i or
 an ancestor of i) by one product each, the joint-space mass matrix from the composite inertias
 A^T I (CRBA: M[j, k] = S_j . Ic_k S_k where j's body is an ancestor of k's), forces on the
-dofs from the subtree sums A^T f. On XLA CPU a step's cost is dominated by its number of kernels,
-not its flops, so this beats the recursive algorithms (Python loops over the static tree, a
-kernel or more per body) at the sizes of scenes (measured: ``benchmarks/physics.py``).
+dofs from the subtree sums A^T f. Where XLA CPU runs a loop as a call per operation, a step's
+cost is its number of operations, not its flops, so this beats the recursive algorithms (Python
+loops over the static tree, an operation or more per body) at the sizes of scenes; where the
+loop is one kernel (``xla_flags``) flops count, and trees of a few dofs take the recursive
+algorithms instead (``applies``; measured: ``benchmarks/physics.py``).
 """
 from __future__ import annotations
 
