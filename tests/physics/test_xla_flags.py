@@ -1,12 +1,11 @@
 """physdsl's XLA CPU options (physdsl/xla_flags.py): added to XLA_FLAGS without overriding the
 user's own, and in effect in this process: rollout loops compile into one kernel."""
 import jax
-import numpy as np
 import pytest
 
 import physdsl  # noqa: F401  (sets XLA_FLAGS before JAX's backend starts)
 from physdsl import xla_flags
-from physdsl.physics import build_simulator
+from physdsl.physics import build_simulator, tree
 from scenes import chain
 
 
@@ -28,14 +27,21 @@ def test_off_adds_nothing():
     assert set(env["XLA_FLAGS"].split()) == {f"{k}={v}" for k, v in xla_flags.OPTIONS.items()}
 
 
-@pytest.mark.parametrize("links", [1, 3])
+@pytest.mark.parametrize("links", [1, 8])
 def test_rollout_loops_compile_into_one_kernel(links):
     """XLA's small-call marker in the compiled rollout: the loop was hoisted into one kernel,
     which XLA's default (1 kB) refuses for 2000 recorded steps, and which a LAPACK call in the
-    loop (a Cholesky solve of a tree with several dofs: ``dense``) would prevent."""
+    loop (the tree path's Cholesky solve at 8 dofs: ``dense``) would prevent."""
     sim = build_simulator(chain(links, duration=2.0))
     text = jax.jit(lambda v: sim.simulate(v).body_pos).lower({}).compile().as_text()
     assert "xla_cpu_small_call" in text
     assert "custom-call(" not in text
-    z = np.asarray(jax.jit(lambda v: sim.simulate(v).body_pos)({}))
-    assert np.all(np.isfinite(z)) and z.shape[0] == 2001
+
+
+def test_small_contact_free_trees_take_the_recursive_path(monkeypatch):
+    """At most ``tree.RECURSIVE_MAX`` dofs and no contact: the recursive algorithms, where the
+    loop is one kernel; the vectorised tree path above that size, or without the options."""
+    few, many = build_simulator(chain(3)).model, build_simulator(chain(8)).model
+    assert not tree.applies(few) and tree.applies(many)
+    monkeypatch.setattr(xla_flags, "in_effect", lambda: False)
+    assert tree.applies(few)
