@@ -19,7 +19,7 @@ from importlib import import_module as _import
 
 from . import xla_flags as _xla_flags
 
-_xla_flags.configure()  # before JAX's backend starts: whole rollout loops as one kernel
+_xla_flags.configure()  # PHYSDSL_XLA_FLAGS=on: rollout loops as one kernel (before JAX starts)
 
 import jax  # noqa: E402
 

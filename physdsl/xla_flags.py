@@ -9,9 +9,12 @@ as library calls and would keep every loop with a matrix product out. Measured s
 (``docs/physics.md``, "Fourth pass"): a pendulum's RK4 step 5.6 -> 0.75 us, its gradient
 23.7 -> 2.3 us; a chain of 10 hinges unchanged.
 
-Options the user already gives in ``XLA_FLAGS`` (the same flag) are left as they are;
-``PHYSDSL_XLA_FLAGS=off`` adds none. Takes effect only where JAX has not yet computed anything
-in the process (XLA reads its flags once, when the backend starts): ``import physdsl`` first.
+Opt-in, ``PHYSDSL_XLA_FLAGS=on``: with them, two test processes of one CI run (jaxlib 0.10.2)
+died of a segmentation fault inside JAX's persistent compile cache (serialising one compiled
+program, reading another back), where no run without them ever had; not reproduced alone. Options
+the user already gives in ``XLA_FLAGS`` (the same flag) are left as they are. Takes effect only
+where JAX has not yet computed anything in the process (XLA reads its flags once, when the
+backend starts): ``import physdsl`` first.
 """
 from __future__ import annotations
 
@@ -43,7 +46,7 @@ def in_effect(environ=os.environ) -> bool:
 
 
 def configure(environ=os.environ) -> None:
-    """Add ``OPTIONS`` to ``environ["XLA_FLAGS"]`` unless ``PHYSDSL_XLA_FLAGS=off``."""
-    if environ.get(ENV, "").strip().lower() in ("off", "0", "false", "no"):
+    """Add ``OPTIONS`` to ``environ["XLA_FLAGS"]`` where ``PHYSDSL_XLA_FLAGS=on``."""
+    if environ.get(ENV, "").strip().lower() not in ("on", "1", "true", "yes"):
         return
     environ["XLA_FLAGS"] = with_options(environ.get("XLA_FLAGS", ""))

@@ -11,15 +11,10 @@ from pathlib import Path
 
 import pytest
 
-# Compiled programs go to a folder of this test run (removed at exit), never the user's cache;
+# Compiled programs go to a folder of this session (removed at exit), never the user's cache;
 # set before physdsl is imported (it sets up JAX's persistent cache then: physdsl/cache.py).
-# The run's first process (pytest, or xdist's controller) makes it and removes it; its workers
-# inherit it, so a program compiled on one worker is read by the other (physdsl/cache.py
-# writes entries atomically, safe to share).
-OWNER = "PHYSDSL_TESTS_CACHE_OWNER"
-if os.environ.get("PHYSDSL_CACHE_DIR", "").lower() != "off" and OWNER not in os.environ:
+if os.environ.get("PHYSDSL_CACHE_DIR", "").lower() != "off":
     os.environ["PHYSDSL_CACHE_DIR"] = tempfile.mkdtemp(prefix="physdsl-tests-cache-")
-    os.environ[OWNER] = str(os.getpid())
     atexit.register(shutil.rmtree, os.environ["PHYSDSL_CACHE_DIR"], ignore_errors=True)
 
 import physdsl  # noqa: E402

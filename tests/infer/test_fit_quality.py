@@ -96,6 +96,7 @@ def test_posterior_pass_one_by_one_equals_vmapped(projectile_model, good, monkey
     assert sum(seen) == 20 and seen[:2] == [1, 1]  # the first two calls time a draw
     vmapped = output.posterior_pass(projectile_model, problem._replace(draw=None), flat)
     # a contact-free scene whose loop is one kernel (physdsl's XLA options) is never vmapped
+    monkeypatch.setattr(output.xla_flags, "in_effect", lambda: True)
     assert output.vmap_after(projectile_model) == np.inf
     monkeypatch.setattr(output.xla_flags, "in_effect", lambda: False)  # as without the options
     monkeypatch.setattr(output, "VMAP_AFTER_S", 0.0)  # every rollout counts as long
