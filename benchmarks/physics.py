@@ -16,7 +16,9 @@ Then ``chain_scaling.*.N`` (N hinged links, N = 2, 5, 10, 20; also the recursive
 the vectorised ``physics/tree.py`` replaced, as ``recursive_*``) and ``contact_scaling.*.N``
 (N balls in a box, N = 2 .. 32): steps_per_s, mujoco_steps_per_s, ours_over_mujoco,
 compile_cpu_s, growth_exponent (time per step ~ N^k between the smallest and largest N).
-``--scaling``: those lines alone; ``--profile``: per-stage microseconds per step
+Then ``welded.*.N`` (N hinged links, each with a ball welded to it: steps/s with the welds
+merged into their links, ``physics/welds.py``, and with every body stepped, and their ratio;
+``--welded``: those lines alone). ``--scaling``: the scaling lines alone; ``--profile``: per-stage microseconds per step
 (``benchmarks/step_profile.py``). Compile figures are true compilations: the persistent cache is
 off (``PHYSDSL_CACHE_DIR=off`` unless set). Ours, the gradient and MuJoCo are timed side by side
 (``side_by_side``: each the best of 5 rounds that take them in turn), so a ratio does not mix
@@ -260,6 +262,49 @@ def scaling(kind, builder, sizes, steps, recursive=False):
             print(f"{kind}_scaling.{label}growth_exponent: {k:.2f}")
 
 
+WELDED_SIZES = (1, 5, 10)
+
+
+def welded_chain(n: int, steps: int) -> str:
+    """.phys text: n hinged capsule links, a ball welded to each, no contacts, RK4."""
+    lines = [f"scene welded_chain_{n} {{",
+             f"  world {{ timestep: 1 ms  duration: {steps} ms  integrator: rk4 }}",
+             "  param th0 ~ normal(0.3 rad, 0.1 rad)"]
+    for k in range(n):
+        z, parent = -0.1 * k, "world" if k == 0 else f"l{k - 1}"
+        lines += [
+            f"  body l{k} {{ shape: capsule(radius: 1 cm, length: 8 cm)  mass: 100 g  "
+            f"position: (0, 0, {z - 0.05:.3f} m)  collide: false }}",
+            f"  joint j{k}: hinge({parent} -> l{k}) {{ axis: (0, 1, 0)  anchor: (0, 0, {z:.3f}) m"
+            f"  initial: {'th0' if k == 0 else '0.1 rad'} }}",
+            f"  body w{k} {{ shape: sphere(radius: 1 cm)  mass: 50 g  "
+            f"position: (0.02 m, 0, {z - 0.09:.3f} m)  collide: false }}",
+            f"  joint f{k}: fixed(l{k} -> w{k})"]
+    return "\n".join(lines + ["}"])
+
+
+def welded(steps: int = 2000):
+    """``welded.*.N`` lines: steps/s of ``welded_chain(N)`` with the welds merged and with every
+    body stepped (``welds.fuse`` off), side by side."""
+    from physdsl import api
+    from physdsl.physics import welds
+    fuse = welds.fuse
+    for n in WELDED_SIZES:
+        fns = []
+        for label, fz in (("merged", fuse), ("every_body", lambda model: None)):
+            welds.fuse = fz
+            sim = build_simulator(api.load(welded_chain(n, steps)))
+            vals = {"th0": jnp.asarray(0.3)}
+            f, t_c = compile_cpu_s(jax.jit(lambda v, sim=sim: sim.simulate(v).body_pos), vals)
+            print(f"welded.{label}.compile_cpu_s.{n}: {t_c:.1f}")
+            fns.append(lambda f=f, vals=vals: contact.timed(f, vals, repeat=3))
+        welds.fuse = fuse
+        t_merged, t_every = side_by_side(fns)
+        print(f"welded.merged.steps_per_s.{n}: {steps / t_merged:.0f}")
+        print(f"welded.every_body.steps_per_s.{n}: {steps / t_every:.0f}")
+        print(f"welded.merged_over_every_body.{n}: {t_every / t_merged:.2f}", flush=True)
+
+
 def profile():
     """``--profile``: where one step's time goes (``step_profile``), chains and balls."""
     cases = [("chain", chain_n, n, 200) for n in CHAIN_SIZES] + \
@@ -337,6 +382,10 @@ def main():
         profile()
         print(f"load_avg_1min_end: {os.getloadavg()[0]:.1f}")
         return
+    if "--welded" in sys.argv:  # the welded lines alone
+        welded()
+        print(f"load_avg_1min_end: {os.getloadavg()[0]:.1f}")
+        return
     if "--scaling" in sys.argv:  # the scaling lines alone
         scaling("chain", chain_n, CHAIN_SIZES, CHAIN_STEPS, recursive=True)
         scaling("contact", balls_n, BALL_SIZES, BALL_STEPS)
@@ -345,6 +394,7 @@ def main():
     results = {name: bench(name) for name in SCENES}
     scaling("chain", chain_n, CHAIN_SIZES, CHAIN_STEPS, recursive=True)
     scaling("contact", balls_n, BALL_SIZES, BALL_STEPS)
+    welded()
     float32_lines(results)
     contact.main()
     print(f"load_avg_1min_end: {os.getloadavg()[0]:.1f}")

@@ -25,7 +25,7 @@ import jax
 import jax.numpy as jnp
 
 from . import contact_stage as cs
-from . import tree
+from . import tree, welds
 from . import contact as cm
 from .contact_models import CONTACT_MODELS, contact_model
 from .dynamics import forward_dynamics, generalized_forces, mass_matrix
@@ -68,9 +68,17 @@ def applied_load(model: PhysicsModel, prm: dict, kin, state: State, t, t_step):
 
 
 def kinematics(model: PhysicsModel, prm: dict, q, v, with_jac: bool = False):
-    """Kinematics by the free-body fast path when it applies, else over the tree."""
+    """Kinematics by the free-body fast path when it applies, else over the tree (over its core
+    bodies where bodies are welded to moving ones: ``welds``)."""
     if model.free_bodies is not None:
         return free_kinematics(model, prm, q, v, with_jac)
+    fused = welds.fuse(model)
+    if fused is None:
+        return _tree_kinematics(model, prm, q, v)
+    return welds.expand(fused, prm, _tree_kinematics(fused.core, prm["core"], q, v))
+
+
+def _tree_kinematics(model: PhysicsModel, prm: dict, q, v):
     if tree.applies(model):
         return tree.tree_kinematics(model, prm, q, v)
     return forward_kinematics(model, prm, q, v)
@@ -81,6 +89,9 @@ def accel(model: PhysicsModel, prm: dict, kin, load, tau=None):
     if model.free_bodies is not None:
         return free_accel(model, prm, kin, load.force, load.torque,
                           load.joint if tau is None else load.joint + tau)
+    if kin.core is not None:
+        fused = welds.fuse(model)
+        model, kin, load = fused.core, kin.core, welds.core_load(fused, kin, load)
     if tree.applies(model):
         return tree.tree_accel(model, kin, load, tau)
     gen = generalized_forces(model, kin, load)
@@ -92,6 +103,8 @@ def joint_mass_matrix(model: PhysicsModel, prm: dict, kin):
     """M (nv, nv) at the state of ``kin``."""
     if model.free_bodies is not None:
         return free_mass_matrix(model, prm, kin)
+    if kin.core is not None:
+        model, kin = welds.fuse(model).core, kin.core
     if tree.applies(model):
         return tree.tree_mass_matrix(model, kin)
     return mass_matrix(model, kin)

@@ -36,6 +36,7 @@ class Kin(NamedTuple):
     inertia: jnp.ndarray | None = None  # (B, 6, 6) spatial inertias at the origin
     S: tuple | None = None  # per body (6, nv_i) motion subspace
     acc0: jnp.ndarray | None = None  # (B, 6) spatial accelerations at zero joint acceleration
+    core: "Kin | None" = None  # the core model's, where welds are merged (``welds``)
 
 
 BARRIER_DEPTH = 3

@@ -10,6 +10,7 @@ import jax.numpy as jnp
 from ..expr import Const, evaluate
 from ..scene import Scene
 from . import inertia as inr
+from . import welds
 from .free import free_inverse_inertia
 from .spatial import normalize, quat_axis_angle, quat_conj, quat_mul, quat_to_mat, rotate
 from .structure import PhysicsModel
@@ -141,6 +142,9 @@ def evaluate_params(scene: Scene, model: PhysicsModel, values) -> dict:
     }
     if model.free_bodies is not None:
         out["free_inv_inertia"] = free_inverse_inertia(model, inertia)
+    fused = welds.fuse(model)
+    if fused is not None:  # once per rollout, not per step
+        out["core"] = welds.core_params(fused, out)
     return out
 
 
