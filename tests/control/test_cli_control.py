@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import physdsl
 from physdsl.cli import main
@@ -14,6 +15,7 @@ from physdsl.cli import main
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "control_cart" / "cart.phys"
 
 
+@pytest.mark.slow  # ~40 s; planning itself: tests/control/test_control.py
 def test_control_writes_a_plan_that_the_planned_scene_replays(tmp_path, capsys):
     out = tmp_path / "plan"
     assert main(["control", str(EXAMPLE), "-o", str(out)]) == 0

@@ -43,6 +43,7 @@ def closed_loop(controller):
                    controller=controller)
 
 
+@pytest.mark.slow  # one second of closed-loop MPC with refits (~70 s); the controller's parts: the tests below
 def test_balance_held_and_mass_refitted(closed_loop):
     """The pole stays within the goal's 0.1 rad of upright while the refitted pole mass moves
     from the prior's centre to within a quarter of its first error of the plant's."""
@@ -132,6 +133,7 @@ def test_transition_matches_mujoco_at_the_plants_values(controller):
     assert np.allclose(np.asarray(x), controller.state(obs), atol=2e-3)
 
 
+@pytest.mark.slow  # the closed loop above
 def test_files_written(closed_loop, tmp_path):
     out = mpc_files.write(closed_loop, tmp_path / "run", settings={"plant": "plant.xml"})
     rows = (out / "trajectory.csv").read_text().splitlines()

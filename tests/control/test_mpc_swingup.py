@@ -37,6 +37,7 @@ def short_horizon(knots: int = 20) -> str:
     return text.replace("1200 ms", f"{20 * knots} ms")
 
 
+@pytest.mark.slow  # ~40 s; closed-loop MPC runs in tests/control/test_mpc.py
 def test_first_half_second_pumps_energy_toward_upright():
     """In 0.5 s of MuJoCo time the MPC lifts the hanging pole's energy to a quarter of upright's
     (unforced it stays at ~1e-4), within the motor's bounds, and the first refits move the

@@ -86,6 +86,7 @@ def test_adding_quadratic_drag_explains_the_data(quadratic, quadratic_refit):
     assert np.all((q5 <= truth) & (truth <= q95)), (q5, q95, truth)
 
 
+@pytest.mark.slow  # a pendulum's diagnosis (~43 s); ranking: the quadratic-drag tests here
 def test_joint_damping_ranks_first_on_a_pendulum(fitted):
     f = fitted("joint_damping")
     assert not f.report.consistent, f.report.text()

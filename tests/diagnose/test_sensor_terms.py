@@ -68,6 +68,7 @@ def test_delayed_reading_matches_interpolation_and_its_gradient():
     assert float(jax.grad(f)(0.0123)) == pytest.approx(float(fd), rel=1e-5)
 
 
+@pytest.mark.slow  # a MAP fit (~30 s); the terms' reading and gradient: the tests above
 def test_map_recovers_a_known_offset_and_gain(tmp_path):
     from physdsl.compile import Model
 

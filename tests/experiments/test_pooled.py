@@ -12,6 +12,7 @@ from .helpers import TRUTH, drag_fit, interval, single, throws
 DRAG = TRUTH["coefficient"]
 
 
+@pytest.mark.slow  # ~23 s; pooled fits: the other tests here and test_backends.py
 def test_pooled_map_recovers_drag_narrower_than_one_throw(tmp_path):
     """4 throws (3, 8.4, 14.6, 20 m/s; 0.6 s each): the shared drag's 90% interval covers the
     truth and is >= 3x narrower than the fit of the 8.4 m/s throw alone; every throw's launch

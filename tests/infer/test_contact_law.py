@@ -129,6 +129,7 @@ def test_augmented_scene_scales_only_fixed_restitutions(collision):
         contact_law.references(uses[0].params["coefficient"])
 
 
+@pytest.mark.slow  # two CLI fits (~37 s); the term itself: the tests above
 def test_a_pair_that_never_impacts_leaves_the_intervals_as_they_are(tmp_path):
     """A pair with a fixed restitution that does not impact within the record (a sliding
     block's floor, a ball rolling on a ramp) has no rebound to be wrong: the term is zero and

@@ -63,6 +63,7 @@ def _summary(idata) -> dict:
             for k in TRUTH}
 
 
+@pytest.mark.slow  # two full fits (~40 s); ruling pairs out and back in: the tests below
 def test_a_ground_the_ball_never_nears_leaves_the_fit_unchanged(high_toss):
     model = compile_phys(high_toss)
     assert model.ruled_out == (0,)

@@ -151,6 +151,7 @@ def test_every_unknown_gradient_matches_finite_differences():
     check_fd(Compiled(arm_scene(), ARM_VALUES))
 
 
+@pytest.mark.slow  # ~25 s
 def test_jit_vmap_grad_and_no_recompile(arm):
     sim, vals = arm.sim, arm.values
     a = sim.simulate(vals)

@@ -138,6 +138,7 @@ def test_rk4_scene_still_bounces():
     np.testing.assert_allclose(z["semi_implicit_euler"], exact, atol=1e-4)
 
 
+@pytest.mark.slow  # compiles the vmapped contact step (~45 s)
 def test_batched_contact_steps_equal_unbatched():
     """Under vmap the contact step runs only where some member has a contact near
     (``integrate.either``): a batch of one ball that bounces and one that never reaches the

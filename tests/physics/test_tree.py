@@ -106,6 +106,7 @@ def test_chain_gradient_matches_finite_differences(chain5):
     assert abs(g - fd) < 1e-6 * max(1.0, abs(fd))
 
 
+@pytest.mark.slow  # ~22 s; the free-body path against MuJoCo: tests/physics/test_free_path.py
 def test_free_body_compliant_load_equals_the_jacobian_route():
     """Free balls in a box: the contact forces as body loads == J^T F through the Jacobian."""
     floor = Body("floor", Shape("plane", {"normal": c((0, 0, 1))}), position=c((0, 0, 0)),
