@@ -17,8 +17,8 @@ the vectorised ``physics/tree.py`` replaced, as ``recursive_*``) and ``contact_s
 (N balls in a box, N = 2 .. 32): steps_per_s, mujoco_steps_per_s, ours_over_mujoco,
 compile_cpu_s, growth_exponent (time per step ~ N^k between the smallest and largest N).
 Then ``welded.*.N`` (N hinged links, each with a ball welded to it: steps/s with the welds
-merged into their links, ``physics/welds.py``, and with every body stepped, and their ratio;
-``--welded``: those lines alone). ``--scaling``: the scaling lines alone; ``--profile``: per-stage microseconds per step
+merged into their links, ``physics/welds.py``, and with every body stepped, their ratio, and
+whether physdsl merges there by default; ``--welded``: those lines alone). ``--scaling``: the scaling lines alone; ``--profile``: per-stage microseconds per step
 (``benchmarks/step_profile.py``). Compile figures are true compilations: the persistent cache is
 off (``PHYSDSL_CACHE_DIR=off`` unless set). Ours, the gradient and MuJoCo are timed side by side
 (``side_by_side``: each the best of 5 rounds that take them in turn), so a ratio does not mix
@@ -284,22 +284,25 @@ def welded_chain(n: int, steps: int) -> str:
 
 
 def welded(steps: int = 2000):
-    """``welded.*.N`` lines: steps/s of ``welded_chain(N)`` with the welds merged and with every
-    body stepped (``welds.fuse`` off), side by side."""
+    """``welded.*.N`` lines: steps/s of ``welded_chain(N)`` with the welds merged (wherever
+    there are any) and with every body stepped, side by side, and ``welded.pays.N``: whether
+    physdsl merges them there (``welds.pays``, the rule these figures set)."""
     from physdsl import api
     from physdsl.physics import welds
-    fuse = welds.fuse
+    fuse, pays = welds.fuse, welds.pays
     for n in WELDED_SIZES:
         fns = []
         for label, fz in (("merged", fuse), ("every_body", lambda model: None)):
-            welds.fuse = fz
+            welds.fuse, welds.pays = fz, (lambda core: True)
             sim = build_simulator(api.load(welded_chain(n, steps)))
             vals = {"th0": jnp.asarray(0.3)}
             f, t_c = compile_cpu_s(jax.jit(lambda v, sim=sim: sim.simulate(v).body_pos), vals)
             print(f"welded.{label}.compile_cpu_s.{n}: {t_c:.1f}")
             fns.append(lambda f=f, vals=vals: contact.timed(f, vals, repeat=3))
-        welds.fuse = fuse
+            welds.fuse, welds.pays = fuse, pays
         t_merged, t_every = side_by_side(fns)
+        model = build_simulator(api.load(welded_chain(n, steps))).model
+        print(f"welded.pays.{n}: {int(welds.fuse(model) is not None)}")
         print(f"welded.merged.steps_per_s.{n}: {steps / t_merged:.0f}")
         print(f"welded.every_body.steps_per_s.{n}: {steps / t_every:.0f}")
         print(f"welded.merged_over_every_body.{n}: {t_every / t_merged:.2f}", flush=True)

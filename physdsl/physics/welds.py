@@ -5,8 +5,8 @@ and dynamics run over the *core* bodies alone (each with the composite mass, cen
 and inertia of itself and the bodies welded below it), and the welded bodies' poses and
 velocities are read off their core body's afterwards (``expand``). Effects, contacts and
 observations still see every body; their loads are summed onto the core bodies
-(``core_load``). A pendulum's rod and bob on one hinge then step as one body (measured:
-``benchmarks/physics.py``, ``welded.*``).
+(``core_load``). A pendulum's rod and bob on one hinge then step as one body. Only where it
+pays (``pays``; measured: ``benchmarks/physics.py --welded``).
 """
 from __future__ import annotations
 
@@ -17,6 +17,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .. import xla_flags
+from . import tree
 from .effects.base import Load
 from .spatial import mm, mv, quat_conj, quat_mul, quat_to_mat, spatial_inertia
 from .structure import PhysicsModel, TreeJoint
@@ -38,10 +40,24 @@ class Fused(NamedTuple):
 
 def fuse(model: PhysicsModel) -> Fused | None:
     """``model``'s core with its welds merged, or None where no body is welded to a moving one
-    (a body welded to the world stays a body of its own: it never moves)."""
+    (a body welded to the world stays a body of its own: it never moves) or merging does not
+    pay (``pays``)."""
     if model not in _CACHE:
-        _CACHE[model] = _fuse(model)
+        fused = _fuse(model)
+        _CACHE[model] = fused if fused is not None and pays(fused.core) else None
     return _CACHE[model]
+
+
+def pays(core: PhysicsModel) -> bool:
+    """Whether stepping ``core`` beats stepping every body (``benchmarks/physics.py --welded``,
+    side by side): a core of one moving body, whose tree operations collapse (1.40-1.46x; with
+    one-kernel loops 1.16-1.26x), or the tree path where loops are one kernel and flops count
+    (10 links 1.57x). Elsewhere a step costs its count of operations, which merging does not
+    lower, while reading the welded bodies off the core adds some (5 links 0.79-0.87x, 10
+    links 0.90-0.93x; one-kernel loops on the recursive path, 5 links, 0.86-1.08x)."""
+    if sum(j.nv > 0 for j in core.joints) == 1:
+        return True
+    return xla_flags.in_effect() and tree.applies(core)
 
 
 def _welded(j: TreeJoint) -> bool:

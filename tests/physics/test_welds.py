@@ -54,6 +54,7 @@ def _rollouts(scene, monkeypatch, recursive: bool, derivatives: bool = True):
     """The rollout and d(final state)/dL with the welds merged and with every body stepped."""
     if recursive:
         monkeypatch.setattr(tree, "TREE_MAX", 0)
+    monkeypatch.setattr(welds, "pays", lambda core: True)  # merged wherever there are welds
     out = {}
     for label, fuse in (("merged", welds.fuse), ("every body", lambda model: None)):
         monkeypatch.setattr(welds, "fuse", fuse)
@@ -97,6 +98,22 @@ def test_merged_welds_in_a_contact_scene_move_as_stepping_each(monkeypatch):
                                    atol=1e-10, err_msg=f)
 
 
+def test_merged_where_it_pays(scene, monkeypatch):
+    """One moving core body (a pendulum's rod and bob) merges; a chain of hinges does only where
+    loops are one kernel and it takes the tree path (``welds.pays``)."""
+    pend = api.load(SCENE.replace("joint rail: slider(world -> cart)", "joint rail: fixed(world -> cart)")
+                    .replace("  initial_velocity: 0.2 m/s", "")
+                    .replace("joint j1: hinge(w0 -> l1)", "joint j1: fixed(w0 -> l1)")
+                    .replace("anchor: (0, 0, -0.1) m  initial: 0.1 rad", ""))
+    assert welds.fuse(build_simulator(pend).model) is not None
+    chain = welds._fuse(build_simulator(scene).model).core
+    monkeypatch.setattr(welds.xla_flags, "in_effect", lambda: False)
+    assert not welds.pays(chain)
+    monkeypatch.setattr(welds.xla_flags, "in_effect", lambda: True)
+    monkeypatch.setattr(tree, "RECURSIVE_MAX", 0)
+    assert welds.pays(chain)
+
+
 def test_a_world_weld_is_no_merge():
     """A body welded to the world never moves: a scene with only such welds has no core."""
     sc = api.load("""
@@ -110,8 +127,9 @@ scene static_weld {
     assert welds.fuse(build_simulator(sc).model) is None
 
 
-def test_core_mass_properties_are_the_composite(scene):
+def test_core_mass_properties_are_the_composite(scene, monkeypatch):
     """Mass, centre and inertia of l1 + w1 + tip against the parallel-axis theorem in numpy."""
+    monkeypatch.setattr(welds, "pays", lambda core: True)
     sim = build_simulator(scene)
     model = sim.model
     prm = sim.params({"L": jnp.asarray(0.1)})
