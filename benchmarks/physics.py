@@ -18,7 +18,8 @@ the vectorised ``physics/tree.py`` replaced, as ``recursive_*``) and ``contact_s
 compile_cpu_s, growth_exponent (time per step ~ N^k between the smallest and largest N).
 Then ``welded.*.N`` (N hinged links, each with a ball welded to it: steps/s with the welds
 merged into their links, ``physics/welds.py``, and with every body stepped, their ratio, and
-whether physdsl merges there by default; ``--welded``: those lines alone). ``--scaling``: the scaling lines alone; ``--profile``: per-stage microseconds per step
+whether physdsl merges there by default; ``--welded``: those lines alone). ``--scaling``: the
+scaling lines alone; ``--profile``: per-stage microseconds per step
 (``benchmarks/step_profile.py``). Compile figures are true compilations: the persistent cache is
 off (``PHYSDSL_CACHE_DIR=off`` unless set). Ours, the gradient and MuJoCo are timed side by side
 (``side_by_side``: each the best of 5 rounds that take them in turn), so a ratio does not mix

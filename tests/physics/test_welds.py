@@ -41,7 +41,8 @@ scene welded_chain {
 }
 """
 
-FLOOR = SCENE.replace("  body cart", "  body floor { shape: plane(normal: (0, 0, 1))  position: (0, 0, -0.4) m }\n  body cart")
+FLOOR = SCENE.replace("  body cart", "  body floor { shape: plane(normal: (0, 0, 1))  "
+                                    "position: (0, 0, -0.4) m }\n  body cart")
 FIELDS = ("body_pos", "body_quat", "body_vel", "body_angvel", "joint_pos", "joint_vel", "q", "v")
 
 
@@ -101,7 +102,8 @@ def test_merged_welds_in_a_contact_scene_move_as_stepping_each(monkeypatch):
 def test_merged_where_it_pays(scene, monkeypatch):
     """One moving core body (a pendulum's rod and bob) merges; a chain of hinges does only where
     loops are one kernel and it takes the tree path (``welds.pays``)."""
-    pend = api.load(SCENE.replace("joint rail: slider(world -> cart)", "joint rail: fixed(world -> cart)")
+    pend = api.load(SCENE.replace("joint rail: slider(world -> cart)",
+                                  "joint rail: fixed(world -> cart)")
                     .replace("  initial_velocity: 0.2 m/s", "")
                     .replace("joint j1: hinge(w0 -> l1)", "joint j1: fixed(w0 -> l1)")
                     .replace("anchor: (0, 0, -0.1) m  initial: 0.1 rad", ""))
@@ -139,7 +141,8 @@ def test_core_mass_properties_are_the_composite(scene, monkeypatch):
     assert sorted(np.flatnonzero(fused.root == k)) == sorted(members)
     m = np.asarray(prm["mass"])[members]
     R = np.asarray(quat_to_mat(prm["ref_quat"]))[members]
-    c = np.asarray(prm["ref_pos"])[members] + np.einsum("bij,bj->bi", R, np.asarray(prm["com"])[members])
+    c = (np.asarray(prm["ref_pos"])[members]
+         + np.einsum("bij,bj->bi", R, np.asarray(prm["com"])[members]))
     M = m.sum()
     cc = (m[:, None] * c).sum(0) / M
     Iw = sum(R[i] @ np.asarray(prm["inertia"])[members[i]] @ R[i].T
@@ -148,7 +151,7 @@ def test_core_mass_properties_are_the_composite(scene, monkeypatch):
     core = prm["core"]
     Rl = R[0]
     np.testing.assert_allclose(core["mass"][k], M, rtol=1e-14)
-    np.testing.assert_allclose(Rl @ np.asarray(core["com"][k]) + np.asarray(prm["ref_pos"])[members[0]],
-                               cc, atol=1e-14)
+    ref_l1 = np.asarray(prm["ref_pos"])[members[0]]
+    np.testing.assert_allclose(Rl @ np.asarray(core["com"][k]) + ref_l1, cc, atol=1e-14)
     np.testing.assert_allclose(Rl @ np.asarray(core["inertia"][k]) @ Rl.T, Iw, atol=1e-14)
     assert abs(Iw[0, 1]) > 1e-7  # the off-axis welds give products of inertia: a real check
