@@ -91,7 +91,20 @@ class PooledModel(Model):
     def rollouts(self, values):
         """Every recording's rollout, stacked (leaves (R, T, ...)); ``CHUNK`` recordings per
         vmapped call (``jax.lax.map``), so memory is bounded by one chunk's rollouts. Where
-        nothing differs between recordings, one rollout serves all (leaves (T, ...))."""
+        nothing differs between recordings, one rollout serves all (leaves (T, ...)).
+
+        Called with concrete values (the posterior pass's draws, a check's rollout), one
+        compiled program of this Model's: a vmap run op by op would dispatch, and compile,
+        every operation of the rollout on its own."""
+        if any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(values)):
+            return self._rollouts(values)
+        if self._compiled_rollouts is None:
+            self._compiled_rollouts = jax.jit(self._rollouts)
+        return self._compiled_rollouts(values)
+
+    _compiled_rollouts = None
+
+    def _rollouts(self, values):
         shared = {k: v for k, v in values.items() if k not in self.per_experiment}
         stacked = self.stacked(values)
         if not stacked:

@@ -62,3 +62,18 @@ def test_check_reports_each_recording_and_the_pool(tmp_path):
     assert names == ["ball.position[03]", "ball.position[16]"]
     assert report.n == sum(o.n for o in report.observables)
     assert 0.7 < report.rms_sigma < 1.3  # the right model: residuals at the noise
+
+
+def test_concrete_values_roll_out_through_one_compiled_program(tmp_path):
+    """The posterior pass's draws reach the pooled rollout with concrete values: three draws
+    trace the scene's rollout once (one compiled program), not once per draw as a vmap run op
+    by op did (dispatching, and compiling, each of its operations on its own)."""
+    import jax
+
+    model = physdsl.compile(throws(tmp_path, ["03", "16"], 0.2))
+    draws = model.sample_prior(jax.random.PRNGKey(0), 3)
+    before = model.simulator.trace_count
+    outs = [model.fit_simulate({k: v[i] for k, v in draws.items()}) for i in range(3)]
+    assert model.simulator.trace_count - before == 1
+    pos = [np.asarray(o.body_pos) for o in outs]
+    assert pos[0].shape[0] == 2 and not np.allclose(pos[0], pos[1])  # both throws, each draw's
