@@ -50,11 +50,12 @@ def fuse(model: PhysicsModel) -> Fused | None:
 
 def pays(core: PhysicsModel) -> bool:
     """Whether stepping ``core`` beats stepping every body (``benchmarks/physics.py --welded``,
-    side by side): a core of one moving body, whose tree operations collapse (1.40-1.46x; with
-    one-kernel loops 1.16-1.26x), or the tree path where loops are one kernel and flops count
-    (10 links 1.57x). Elsewhere a step costs its count of operations, which merging does not
-    lower, while reading the welded bodies off the core adds some (5 links 0.79-0.87x, 10
-    links 0.90-0.93x; one-kernel loops on the recursive path, 5 links, 0.86-1.08x)."""
+    side by side; docs/physics.md): a core of one moving body, whose tree operations collapse
+    (1.00-1.46x; with one-kernel loops 1.16-1.26x), or the tree path where loops are one kernel
+    and flops count (10 links 1.44-1.57x). Elsewhere a step costs its count of operations,
+    which merging does not lower, while reading the welded bodies off the core adds some (5
+    links 0.79-1.05x, 10 links 0.90-1.13x; one-kernel loops on the recursive path, 5 links,
+    0.86-1.08x)."""
     if sum(j.nv > 0 for j in core.joints) == 1:
         return True
     return xla_flags.in_effect() and tree.applies(core)
@@ -102,10 +103,10 @@ def _sum_members(fused: Fused, x):
 
 
 def core_params(fused: Fused, prm: dict) -> dict:
-    """The core model's per-body params (``params.evaluate_params`` keeps them as ``prm["core"]``):
-    each core body's own rows, with the mass, centre of mass (in
-    its body frame) and inertia (about that centre, body axes) of it and its welded bodies,
-    from their reference poses (at which the weld holds them)."""
+    """The core model's per-body params (``params.evaluate_params`` keeps them as
+    ``prm["core"]``): each core body's own rows, with the mass, centre of mass (in its body
+    frame) and inertia (about that centre, body axes) of it and its welded bodies, from their
+    reference poses (at which the weld holds them)."""
     R = quat_to_mat(prm["ref_quat"])  # (B, 3, 3)
     m = prm["mass"]
     com_w = prm["ref_pos"] + mv(R, prm["com"])  # (B, 3) world centres at the reference pose
