@@ -41,6 +41,7 @@ def rows(folder: Path) -> dict:
         return {r["name"]: r for r in csv.DictReader(f)}
 
 
+@pytest.mark.slow  # ~17 s; batches: tests/batch/test_local.py, pooled fits: tests/experiments
 def test_batch_infer_fits_each_scenes_recordings_pooled(tmp_path, capsys):
     """Two experiments scenes in one batch (inline executor): each job's summary names its
     recordings' unknowns, its launch velocities are its own throws' (within 4 sd; the labs'

@@ -58,6 +58,7 @@ def travelled(fn, task):
     return InlineExecutor().submit(pickle.loads, pickle.dumps(future.result()))
 
 
+@pytest.mark.slow  # ~23 s
 def test_refits_as_tasks_give_the_refits_made_here(fitted):
     """The refits' ΔELPD, ΔLFO, RMS, evidence and fitted strength are the same (1e-9) when
     each refit travels as a task; both name the same drag law, which brings the residuals

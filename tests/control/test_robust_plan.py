@@ -4,6 +4,7 @@ the scene where the coefficient is known to be c0 (and differ from the drag-free
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 import physdsl
 from physdsl.control import build, optimise
@@ -29,6 +30,7 @@ C0 = 0.05  # kg/s
 NAME = "linear_drag@ball.coefficient"
 
 
+@pytest.mark.slow  # ~14 s
 def test_a_plan_over_identical_draws_is_the_plan_for_that_value():
     fitted = physdsl.compile(SCENE.replace("DRAG", "~ half_normal(0.1 kg/s)"))
     draws = from_dict({"posterior": {NAME: np.full((2, 3), C0)}})

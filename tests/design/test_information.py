@@ -67,6 +67,7 @@ def model(tmp_path_factory):
     return physdsl.compile(folder / "cart.phys")
 
 
+@pytest.mark.slow  # ~37 s
 def test_fisher_is_the_closed_form_ones(model):
     b = belief(model, (PUSH,))
     push = np.array([3.0, -1.0, 4.0, 0.5, -2.0])

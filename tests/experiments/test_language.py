@@ -88,6 +88,7 @@ def test_hierarchical_prior_is_a_plate_around_the_shared_mean():
     assert draws["ball.velocity"].shape == (4000, 2, 3)
 
 
+@pytest.mark.slow  # ~18 s
 def test_cli_infer_writes_each_recordings_unknowns_by_name(tmp_path, capsys, monkeypatch):
     """physdsl infer of a manifest scene: exit 0, summary.csv rows per recording by name."""
     monkeypatch.chdir(DATA)

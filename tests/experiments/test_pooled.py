@@ -54,6 +54,7 @@ def test_pooled_nuts_covers_the_truth(tmp_path):
     assert rhat(np.asarray(idata.posterior["quadratic_drag@ball.coefficient"].values)) < 1.1
 
 
+@pytest.mark.slow  # ~15 s
 def test_check_reports_each_recording_and_the_pool(tmp_path):
     model = physdsl.compile(throws(tmp_path, ["03", "16"], 0.5))
     idata = physdsl.infer(model, backend="map", chains=1, progress=False)

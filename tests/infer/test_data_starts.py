@@ -3,6 +3,7 @@ from pathlib import Path
 
 import jax
 import numpy as np
+import pytest
 
 from physdsl.infer.data_starts import (MIN_SAMPLES, _estimate, data_start, initial_state_unknowns,
                                        track_estimates)
@@ -106,6 +107,7 @@ def test_a_start_the_data_put_outside_the_prior_lies_in_its_support(tmp_path):
     assert angle > np.radians(35)  # pushed against the edge the data point to
 
 
+@pytest.mark.slow  # ~19 s; data starts: the other tests here
 def test_a_hinge_scene_starts_at_the_encoder_and_track():
     """The pendulum example: release angle and length from the first samples of the bob's
     track and the encoder (truth 40 deg, 0.6 m; priors 40 +- 10 deg, 0.6 +- 0.05 m)."""

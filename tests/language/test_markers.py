@@ -65,6 +65,7 @@ def tip_data(tmp_path_factory):
     return folder
 
 
+@pytest.mark.slow  # ~11 s
 def test_a_marker_track_fits_the_release_angle(tip_data):
     # the data labels the point 'pole_tip'; the scene calls it 'tip' (name mapping)
     text = (PENDULUM.replace("ANGLE", "a0").replace("scene pendulum {", "scene pendulum {\n"

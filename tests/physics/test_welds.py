@@ -89,6 +89,7 @@ def test_merged_welds_move_every_body_as_stepping_each(scene, monkeypatch, recur
     assert float(jnp.max(jnp.abs(deach))) > 0.01  # L moves the bodies below it
 
 
+@pytest.mark.slow  # ~20 s; the merge itself: the test above
 def test_merged_welds_in_a_contact_scene_move_as_stepping_each(monkeypatch):
     """The same with one contact pair (the tip over a floor): the contact-scene step."""
     out = _rollouts(api.load(FLOOR), monkeypatch, recursive=False, derivatives=False)

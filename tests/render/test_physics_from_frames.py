@@ -24,6 +24,7 @@ def pendulum():
     return Model(syntax.load(SCENE))
 
 
+@pytest.mark.slow  # ~13 s
 def test_corpus_frames_prefer_the_true_length(pendulum):
     """The image likelihood of the frames along L (release angle at its truth) peaks within
     5 % of the true length and falls off on both sides."""
