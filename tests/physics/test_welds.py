@@ -62,6 +62,7 @@ def _rollouts(scene, monkeypatch, recursive: bool, derivatives: bool = True):
         sim = build_simulator(scene)
         values = {"L": jnp.asarray(0.1)}
         roll = sim.simulate(values)
+        assert ("core" in sim.params(values)) == (label == "merged")  # the path under test
         if not derivatives:
             out[label] = (sim.model, roll, None)
             continue
