@@ -43,7 +43,8 @@ def closed_loop(controller):
                    controller=controller)
 
 
-@pytest.mark.slow  # one second of closed-loop MPC with refits (~70 s); the controller's parts: the tests below
+# one second of closed-loop MPC with refits (~70 s); the controller's parts: the tests below
+@pytest.mark.slow
 def test_balance_held_and_mass_refitted(closed_loop):
     """The pole stays within the goal's 0.1 rad of upright while the refitted pole mass moves
     from the prior's centre to within a quarter of its first error of the plant's."""

@@ -48,7 +48,8 @@ def _check_fit(model, best, truth, rms_max, start_atol=0.01):
     assert _hits_the_chain(model, v) > 0.3  # the data: the lowest link swings past 1 rad
 
 
-@pytest.mark.slow  # the whole example's start search (~100 s); the multistart logic: tests/infer/test_multistart.py
+# the whole example's start search (~100 s); the multistart logic: tests/infer/test_multistart.py
+@pytest.mark.slow
 def test_the_default_start_finds_the_collision_basin(tmp_path):
     from physdsl.compile import compile as compile_phys
     from physdsl.infer.base import Settings

@@ -84,7 +84,8 @@ def test_each_recording_rolls_out_under_its_own_control_file(tmp_path):
     assert np.min(np.abs(first[0] - first[1])) > 0.01  # the recordings' pushes differ
 
 
-@pytest.mark.slow  # a pooled fit (~35 s); pooled fits: tests/experiments/test_pooled.py, test_backends.py
+# a pooled fit (~35 s); pooled fits: tests/experiments/test_pooled.py, test_backends.py
+@pytest.mark.slow
 def test_pooled_fit_recovers_the_shared_mass_through_the_controls(tmp_path):
     """MAP + Laplace over 3 runs (0.6 s, 2 mm noise): the shared mass's 90% interval covers
     0.5 kg and is within 3% of it; each run's launch velocity within 2 cm/s of its truth."""

@@ -11,9 +11,10 @@ from physdsl import api
 from physdsl.physics import build_simulator, tree, welds
 from physdsl.physics.spatial import quat_to_mat
 
-# a slider carrying two hinged links, each with a sphere welded to it (the second link hinged
-# to the first one's sphere, the second sphere with a third body welded to it), a block fixed
-# in the world: nested welds, a joint under a welded body, a static body
+# a slider carrying two hinged links, each with a body welded to it (the second link hinged
+# to the first one's sphere; a turned box on the second, with a third body welded to it), a
+# block fixed in the world: nested welds, a joint under a welded body, a turned inertia, a
+# static body
 # (``FLOOR`` adds one contact pair, the tip over a floor: the contact-scene step)
 SCENE = """
 scene welded_chain {
@@ -32,8 +33,8 @@ scene welded_chain {
   body l1 { shape: capsule(radius: 1 cm, length: L - 2 cm)  mass: 100 g  position: (0, 0, -0.15 m)
            collide: false }
   joint j1: hinge(w0 -> l1) { axis: (0, 1, 0)  anchor: (0, 0, -0.1) m  initial: 0.1 rad }
-  body w1 { shape: sphere(radius: 1 cm)  mass: 50 g  position: (-0.02 m, 0.01 m, -0.19 m)
-           collide: false }
+  body w1 { shape: box(size: (1, 2, 3) cm)  mass: 50 g  position: (-0.02 m, 0.01 m, -0.19 m)
+           orientation: (0.8, 0.2, 0.5, 0.1)  collide: false }
   joint f1: fixed(l1 -> w1)
   body tip { shape: sphere(radius: 1 cm)  mass: 30 g  position: (-0.03 m, 0.02 m, -0.21 m)
              orientation: (0.7, 0.0, 0.7, 0.1) }
