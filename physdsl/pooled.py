@@ -22,6 +22,7 @@ import numpyro
 from .compile import MODEL_KINDS, OBS_PREFIX, PRED_PREFIX, Model, _interp, build_distribution
 from .expr import evaluate, references
 from .observe import sensor
+from .physics.simulator import canonical_values, is_traced
 from .scene import Observation, Prior
 from .syntax.dists import find
 
@@ -96,11 +97,11 @@ class PooledModel(Model):
         Called with concrete values (the posterior pass's draws, a check's rollout), one
         compiled program of this Model's: a vmap run op by op would dispatch, and compile,
         every operation of the rollout on its own."""
-        if any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(values)):
+        if is_traced(values):
             return self._rollouts(values)
         if self._compiled_rollouts is None:
             self._compiled_rollouts = jax.jit(self._rollouts)
-        return self._compiled_rollouts(values)
+        return self._compiled_rollouts(canonical_values(values))
 
     _compiled_rollouts = None
 

@@ -175,9 +175,9 @@ class Simulator:
         ``fields``: the Rollout fields the caller reads (default all); others may be None, and
         what they alone need is then neither traced nor compiled.
         """
-        values = {k: _canonical(v) for k, v in dict(values).items()}
+        values = canonical_values(values)
         fields = None if fields is None else tuple(sorted(fields))
-        if any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(values)):
+        if is_traced(values):
             # inside a traced function: inline (a nested jit would be linearized as a whole,
             # partial-evaluating the forward-mode scan again, for nothing: XLA inlines it anyway)
             return self._simulate(values, fields)
@@ -186,6 +186,16 @@ class Simulator:
 
 # Rollout fields of a decoupled scene (``central.decoupled``) that need no rotation
 TRANSLATION_FIELDS = {"t", "body_pos", "body_vel", "contact_force"}
+
+
+def canonical_values(values) -> dict:
+    """``values`` as a compiled rollout takes them (``_canonical``): one compile for equal types."""
+    return {k: _canonical(v) for k, v in dict(values).items()}
+
+
+def is_traced(values) -> bool:
+    """Whether ``values`` hold tracers (a call from inside a traced function), not numbers."""
+    return any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(values))
 
 
 def _canonical(x):

@@ -30,7 +30,7 @@ from .structure import PhysicsModel
 # above this many dofs the articulated-body algorithm (``dynamics.forward_dynamics``): the
 # Cholesky solve here is O(nv^3)
 TREE_MAX = 64
-# ``_static_mm``: products with more multiply-adds than this as dots
+# ``static_mm``: products with more multiply-adds than this as dots
 FUSED_MM_MAX = 4096
 
 
@@ -191,11 +191,11 @@ def tree_kinematics(model: PhysicsModel, prm: dict, q, v) -> Kin:
     Sv_par = jnp.sum(S * jnp.where(own, 0.0, vb)[:, None, :], -1)
     # a free joint's rotation columns turn with the body itself (traced only where one exists)
     Sv_own = jnp.sum(S * jnp.where(own, vb, 0.0)[:, None, :], -1) if own.any() else None
-    vel = _static_mm(A, Sv_par if Sv_own is None else Sv_par + Sv_own)
+    vel = static_mm(A, Sv_par if Sv_own is None else Sv_par + Sv_own)
     c = _cross_motion(jnp.concatenate([vel, jnp.zeros((1, 6), vel.dtype)])[par], Sv_par)
     if Sv_own is not None:
         c = c + _cross_motion(vel, Sv_own)
-    acc0 = _static_mm(A, c)
+    acc0 = static_mm(A, c)
     S_dof = S[dof_body, :, dof_col]  # (nv, 6)
     jac = A[:, None, dof_body] * S_dof.T[None]  # (B, 6, nv)
     com = pos + mv(rot, prm["com"])
@@ -207,7 +207,7 @@ def tree_kinematics(model: PhysicsModel, prm: dict, q, v) -> Kin:
     return Kin(pos, quat, rot, com, ang, vcom, q, v, vel, jac, c, inertia6, S_list, acc0)
 
 
-def _static_mm(A, X):
+def static_mm(A, X):
     """A @ X for a static 0/1 matrix A: small products as a broadcast product and a sum (one
     fused kernel, where a dot of these sizes is a library call of its own), larger ones as a
     dot (XLA CPU runs the broadcast sum of a 20-link chain's composite inertias, 20 x 20 x 36,
@@ -238,7 +238,7 @@ def tree_mass_matrix(model: PhysicsModel, kin: Kin):
     """M (nv, nv) by composite inertias: M[j, k] = S_j . (Ic_k S_k) where j's body is k's or an
     ancestor of it, and its transpose."""
     _, A, dof_body, _, _, _ = _tables(model)
-    Ic = _static_mm(A.T, kin.inertia.reshape(-1, 36)).reshape(-1, 6, 6)
+    Ic = static_mm(A.T, kin.inertia.reshape(-1, 36)).reshape(-1, 6, 6)
     S = _dof_columns(model, kin)
     F = mv(Ic[dof_body], S)  # (nv, 6)
     M1 = jnp.sum(S[:, None, :] * F[None], -1)  # M1[j, k] = S_j . F_k

@@ -96,10 +96,9 @@ def _fuse(model: PhysicsModel) -> Fused | None:
 
 
 def _sum_members(fused: Fused, x):
-    """(Bc, ...) each core body's sum of ``x`` (B, ...) over its members (a static product, as a
-    broadcast sum: one fused kernel, where a dot is a library call of its own)."""
-    W = jnp.asarray(fused.members, x.dtype).reshape(fused.members.shape + (1,) * (x.ndim - 1))
-    return jnp.sum(W * x[None], 1)
+    """(Bc, ...) each core body's sum of ``x`` (B, ...) over its members (``tree.static_mm``)."""
+    flat = x.reshape(x.shape[0], -1)
+    return tree.static_mm(fused.members, flat).reshape((fused.members.shape[0],) + x.shape[1:])
 
 
 def core_params(fused: Fused, prm: dict) -> dict:
