@@ -10,7 +10,7 @@ mujoco_body_steps_per_s (mj_step on the same scene, one thread), float32_speedup
 float32 rollout time, PHYSDSL_FLOAT32=1 in a subprocess) and float32_max_pos_err_m (largest
 body-position difference between the float32 and float64 rollouts over the horizon),
 one_kernel_loop (1: XLA compiled the rollout's loop into one kernel, ``physdsl/xla_flags.py``;
-0: a call per operation; PHYSDSL_XLA_FLAGS=on for the former where XLA allows it). Then
+0: a call per operation, as with PHYSDSL_XLA_FLAGS=off or a library call in the loop). Then
 benchmarks/contact.py's lines (LCP solve, implicit / unrolled / finite-difference gradients).
 Then ``chain_scaling.*.N`` (N hinged links, N = 2, 5, 10, 20; also the recursive tree algorithms
 the vectorised ``physics/tree.py`` replaced, as ``recursive_*``) and ``contact_scaling.*.N``

@@ -19,7 +19,7 @@ from importlib import import_module as _import
 
 from . import xla_flags as _xla_flags
 
-_xla_flags.configure()  # PHYSDSL_XLA_FLAGS=on: rollout loops as one kernel (before JAX starts)
+_xla_flags.configure()  # rollout loops as one kernel (before JAX starts; PHYSDSL_XLA_FLAGS=off: not)
 
 import jax  # noqa: E402
 

@@ -7,18 +7,21 @@ instead when the loop reads and writes less than a byte threshold (1 kB by defau
 no library call; physdsl raises that threshold, and turns off the YNNPACK fusions, which count
 as library calls and would keep every loop with a matrix product out. Measured side by side
 (``docs/physics.md``, "Fourth pass"): a pendulum's RK4 step 5.6 -> 0.75 us, its gradient
-23.7 -> 2.3 us; a chain of 10 hinges unchanged.
+23.7 -> 2.3 us.
 
-Opt-in, ``PHYSDSL_XLA_FLAGS=on``: with them, two test processes of one CI run (jaxlib 0.10.2)
-died of a segmentation fault inside JAX's persistent compile cache (serialising one compiled
-program, reading another back), where no run without them ever had; not reproduced alone. Options
-the user already gives in ``XLA_FLAGS`` (the same flag) are left as they are. Takes effect only
-where JAX has not yet computed anything in the process (XLA reads its flags once, when the
-backend starts): ``import physdsl`` first.
+On by default; ``PHYSDSL_XLA_FLAGS=off`` leaves ``XLA_FLAGS`` alone (every loop a call per
+operation, as JAX ships). One CI run of session 16 (jaxlib 0.10.2) lost two test processes to
+a segmentation fault inside JAX's persistent compile cache with the options on; the op-by-op
+compiles behind one of them are gone, and the next four fresh-clone CI runs with the options
+on passed (``docs/physics.md``, "Sixth pass"). Options the user already gives in
+``XLA_FLAGS`` (the same flag) are left as they are. Takes effect only where JAX has not yet
+computed anything in the process (XLA reads its flags once, when the backend starts):
+``import physdsl`` first.
 """
 from __future__ import annotations
 
 import os
+import sys
 
 # bytes a loop may read and write (counted over one pass of its body) and still be compiled
 # as one kernel: every rollout loop of a scene, batches of draws included
@@ -29,6 +32,7 @@ OPTIONS = {
     "--xla_cpu_experimental_ynn_fusion_type": "",
 }
 ENV = "PHYSDSL_XLA_FLAGS"
+OFF = ("off", "0", "false", "no")  # values of ENV that leave XLA_FLAGS alone
 
 
 def with_options(flags: str) -> str:
@@ -45,8 +49,15 @@ def in_effect(environ=os.environ) -> bool:
     return with_options(flags) == flags.strip()
 
 
+def backend_started() -> bool:
+    """Whether JAX has started a backend in this process (it then reads no more flags)."""
+    bridge = sys.modules.get("jax._src.xla_bridge")
+    return bridge is not None and bridge.backends_are_initialized()
+
+
 def configure(environ=os.environ) -> None:
-    """Add ``OPTIONS`` to ``environ["XLA_FLAGS"]`` where ``PHYSDSL_XLA_FLAGS=on``."""
-    if environ.get(ENV, "").strip().lower() not in ("on", "1", "true", "yes"):
+    """Add ``OPTIONS`` to ``environ["XLA_FLAGS"]`` unless ``PHYSDSL_XLA_FLAGS`` is off, or JAX
+    has started already (then they could not act, and ``in_effect`` must not say they do)."""
+    if environ.get(ENV, "").strip().lower() in OFF or backend_started():
         return
     environ["XLA_FLAGS"] = with_options(environ.get("XLA_FLAGS", ""))

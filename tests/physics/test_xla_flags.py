@@ -1,4 +1,4 @@
-"""physdsl's opt-in XLA CPU options (physdsl/xla_flags.py): added to XLA_FLAGS without
+"""physdsl's XLA CPU options (physdsl/xla_flags.py): added to XLA_FLAGS without
 overriding the user's own, and with them rollout loops compile into one kernel."""
 import os
 import subprocess
@@ -20,14 +20,16 @@ def test_options_are_added_and_the_users_own_are_kept():
     assert xla_flags.with_options(out) == out  # applying twice adds nothing
 
 
-def test_options_are_opt_in():
-    env = {"XLA_FLAGS": "--xla_dump_to=/x"}
+def test_options_are_on_unless_turned_off(monkeypatch):
+    monkeypatch.setattr(xla_flags, "backend_started", lambda: False)  # as at import physdsl
+    env = {"XLA_FLAGS": "--xla_dump_to=/x", "PHYSDSL_XLA_FLAGS": "off"}
     xla_flags.configure(env)
     assert env["XLA_FLAGS"] == "--xla_dump_to=/x" and not xla_flags.in_effect(env)
-    env = {"PHYSDSL_XLA_FLAGS": "on"}
-    xla_flags.configure(env)
-    assert set(env["XLA_FLAGS"].split()) == {f"{k}={v}" for k, v in xla_flags.OPTIONS.items()}
-    assert xla_flags.in_effect(env)
+    for env in ({}, {"PHYSDSL_XLA_FLAGS": "on"}):
+        xla_flags.configure(env)
+        assert set(env["XLA_FLAGS"].split()) == {f"{k}={v}"
+                                                 for k, v in xla_flags.OPTIONS.items()}
+        assert xla_flags.in_effect(env)
 
 
 HOISTED = """
@@ -68,3 +70,15 @@ def test_small_contact_free_trees_take_the_recursive_path(monkeypatch):
     assert not tree.applies(few) and tree.applies(many)
     monkeypatch.setattr(xla_flags, "in_effect", lambda: False)
     assert tree.applies(few)
+
+
+def test_options_are_not_claimed_once_jax_has_started():
+    """After JAX's backend started (a user computed before ``import physdsl``), XLA reads no
+    more flags: ``configure`` leaves XLA_FLAGS alone, so ``in_effect`` stays true to the
+    compiled programs. This test process has started JAX (``physdsl`` computes at import)."""
+    import jax.numpy as jnp
+    jnp.zeros(1).block_until_ready()
+    assert xla_flags.backend_started()
+    env = {}
+    xla_flags.configure(env)
+    assert env == {}
