@@ -51,8 +51,9 @@ def in_effect(environ=os.environ) -> bool:
 
 def backend_started() -> bool:
     """Whether JAX has started a backend in this process (it then reads no more flags)."""
-    bridge = sys.modules.get("jax._src.xla_bridge")
-    return bridge is not None and bridge.backends_are_initialized()
+    bridge = sys.modules.get("jax._src.xla_bridge")  # private: read only if JAX has it
+    started = getattr(bridge, "backends_are_initialized", None)
+    return bool(started and started())
 
 
 def configure(environ=os.environ) -> None:

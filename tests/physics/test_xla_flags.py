@@ -75,7 +75,7 @@ def test_small_contact_free_trees_take_the_recursive_path(monkeypatch):
 def test_options_are_not_claimed_once_jax_has_started():
     """After JAX's backend started (a user computed before ``import physdsl``), XLA reads no
     more flags: ``configure`` leaves XLA_FLAGS alone, so ``in_effect`` stays true to the
-    compiled programs. This test process has started JAX (``physdsl`` computes at import)."""
+    compiled programs."""
     import jax.numpy as jnp
     jnp.zeros(1).block_until_ready()
     assert xla_flags.backend_started()
