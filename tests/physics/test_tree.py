@@ -21,6 +21,14 @@ from test_dynamics import mixed_tree
 FIELDS = ("pos", "quat", "com", "ang", "vcom", "vel", "jac", "bias_acc", "inertia", "acc0")
 
 
+@pytest.fixture(autouse=True)
+def vectorised_path(monkeypatch):
+    """Every tree here takes the vectorised path: with the one-kernel options (the default)
+    contact-free trees of up to ``tree.RECURSIVE_MAX`` dofs take the recursive algorithms,
+    which tests/physics/test_vs_mujoco.py and test_dynamics.py check."""
+    monkeypatch.setattr(tree, "RECURSIVE_MAX", 0)
+
+
 @pytest.mark.parametrize("make", [mixed_tree, lambda: chain(20, link=0.1, mass=0.1, r=0.01)],
                          ids=["every_joint_kind", "chain20"])
 def test_tree_path_equals_the_recursive_algorithms(make):
@@ -64,6 +72,7 @@ def chain5():
 def test_chain_matches_mujoco(chain5):
     """5 hinged capsules swinging 0.4 s (semi-implicit Euler on both sides): joint angles."""
     sim, xml, vals = chain5
+    assert tree.applies(sim.model)
     ours = np.asarray(sim.simulate(vals).q)
     qpos0 = np.zeros(5)
     qpos0[0] = float(vals["th0"])
@@ -77,6 +86,7 @@ def test_chain_conserves_energy_under_rk4():
     s = chain(5, link=0.1, mass=0.1, r=0.01, duration=0.5, integrator="rk4",
               angles=[1.0, -0.5, 0.3, 0.0, 0.2])
     sim = build_simulator(s)
+    assert tree.applies(sim.model)
     roll = sim.simulate({})
     prm = sim.params({})
 
@@ -94,6 +104,7 @@ def test_chain_conserves_energy_under_rk4():
 def test_chain_gradient_matches_finite_differences(chain5):
     """d(sum of final link heights)/d(first angle): forward mode == central differences."""
     sim, _, vals = chain5
+    assert tree.applies(sim.model)
 
     def f(th):
         return jnp.sum(sim.simulate({"th0": th}).body_pos[-1, :, 2])
