@@ -12,7 +12,7 @@ as library calls and would keep every loop with a matrix product out. Measured s
 On by default; ``PHYSDSL_XLA_FLAGS=off`` leaves ``XLA_FLAGS`` alone (every loop a call per
 operation, as JAX ships). One CI run of session 16 (jaxlib 0.10.2) lost two test processes to
 a segmentation fault inside JAX's persistent compile cache with the options on; the op-by-op
-compiles behind one of them are gone, and the next four fresh-clone CI runs with the options
+compiles behind one of them are gone, and the next six fresh-clone CI runs with the options
 on passed (``docs/physics.md``, "Sixth pass"). Options the user already gives in
 ``XLA_FLAGS`` (the same flag) are left as they are. Takes effect only where JAX has not yet
 computed anything in the process (XLA reads its flags once, when the backend starts):
