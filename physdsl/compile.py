@@ -282,6 +282,11 @@ class Model:
         False, but for their contact forces)."""
         return self.likelihood_simulator.simulate(values)
 
+    def fit_simulate_ahead(self, values) -> None:
+        """Start compiling ``fit_simulate(values)`` in the background (``physdsl.ahead``);
+        ``values`` may be ``jax.ShapeDtypeStruct``s."""
+        self.likelihood_simulator.simulate_ahead(values)
+
     def rollout_of(self, rollout, obs_name: str):
         """The part of ``simulate``'s rollout that observation ``obs_name`` is read from (a
         pooled Model's rollout holds every recording's)."""

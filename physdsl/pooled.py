@@ -141,6 +141,9 @@ class PooledModel(Model):
         """The rollouts the likelihood reads: ``simulate``'s (no pair is left out here)."""
         return self.rollouts(values)
 
+    def fit_simulate_ahead(self, values) -> None:
+        """Nothing: the recordings' rollouts compile where they are first called."""
+
     def predict(self, values, rollout=None, data=None):
         """Noise-free predictions of every recording's observations: name -> (N, D)."""
         rollout = self.rollouts(values) if rollout is None else rollout

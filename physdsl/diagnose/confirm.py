@@ -8,8 +8,10 @@ import time
 
 import numpy as np
 
+from .. import ahead
 from ..compile import Model
 from ..infer.fit import quick_fit
+from ..infer.problem import compile_ahead, model_problem
 from .candidates import Candidate
 from .diagnosis import Ranked, Refit
 from . import refit_task
@@ -74,10 +76,12 @@ def confirm(model, idata, ranked: list[Ranked], k: int, base_rms: float, echo=No
     scenes each takes minutes. ``draft``: the scene with its AST (parsed when not given).
     """
     echo = echo or (lambda line: None)
-    base = Baseline(model, idata, draft or Draft.of(model.scene), base_rms, echo)
-    done = 0
+    draft = draft or Draft.of(model.scene)
     # a sensor fault is refitted where it leads the score tests (on top of the effects' refits)
     first = next((r for r in ranked if not r.same_as), None)
+    compiling = refits_ahead(draft, ranked, k, first)  # noqa: F841 - alive until they are fitted
+    base = Baseline(model, idata, draft, base_rms, echo)
+    done = 0
     ahead = submit_first(base, ranked, k, first)  # on an executor: the first refits at once
     for r in ranked:
         if r.same_as and doubtful_twin(r, ranked):
@@ -181,12 +185,8 @@ def submit_first(base: Baseline, ranked: list[Ranked], k: int, first) -> dict:
     submit = refit_task.submitter()
     if submit is None:
         return {}
-    picks = [r for r in ranked if not r.same_as and (r.kind == "effect" or r is first)]
-    effects = [r for r in picks if r.kind == "effect"][:k]
     out = {}
-    for r in picks:
-        if r.kind == "effect" and r not in effects:
-            continue
+    for r in sure_refits(ranked, k, first):
         try:
             draft = base.draft.with_candidate(r.candidate)
             start = refit_start(base.model, base.idata, r.candidate, r.estimate)
@@ -194,6 +194,31 @@ def submit_first(base: Baseline, ranked: list[Ranked], k: int, first) -> dict:
             continue  # refitted here by the loop, which reports the failure
         out[id(r)] = (draft, submit(refit_task.run, task(base, r, draft, start)))
     return out
+
+
+def sure_refits(ranked: list[Ranked], k: int, first) -> list[Ranked]:
+    """The refits ``confirm`` makes whatever they show: a leading sensor fault (``first``) and
+    the first ``k`` distinct effects."""
+    picks = [r for r in ranked if not r.same_as and (r.kind == "effect" or r is first)]
+    effects = [r for r in picks if r.kind == "effect"][:k]
+    return [r for r in picks if r.kind != "effect" or r in effects]
+
+
+def refits_ahead(draft: Draft, ranked: list[Ranked], k: int, first) -> list[Model]:
+    """Where refits run here: start compiling the sure refits' fit programs in the background
+    (``infer.problem.compile_ahead``), so each compiles while the baseline and the refits
+    before it run; their Models, which hold the programs until the refits take them."""
+    if refit_task.submitter() is not None or not ahead.enabled():
+        return []
+    models = []
+    for r in sure_refits(ranked, k, first):
+        try:
+            new = Model(draft.with_candidate(r.candidate).scene)
+            compile_ahead(model_problem(new))
+        except REFIT_FAILURES:
+            continue  # the refit itself reports it
+        models.append(new)
+    return models
 
 
 def refit_start(model, idata, cand: Candidate, estimate: float | None) -> dict:

@@ -31,6 +31,7 @@ from .edits import Draft
 from .loo import loo_reliability
 from .quality import fit_quality
 from .rank import diagnose
+from .screening import score_ahead
 from .report import html_page, new_figure, save_png
 from .stepwise import judge, parse, reexamine, sources_unexamined
 from .workflow import check_model, point_estimate
@@ -69,6 +70,9 @@ class _Loop:
     beyond: object = None
     allow_learned: bool = False
     ties: list = field(default_factory=list)  # this round's re-examination: swaps the data cannot decide
+    # whether the round's fit will likely leave systematic residuals, so that its score tests
+    # run: the naive scene, or a winner whose refit did; a swap's or drop's scene alike
+    misfit_expected: bool = True
 
 
 # a library winner that removes less than this share of the excess misfit (RMS² - 1) left by the
@@ -111,6 +115,8 @@ def _round(loop: _Loop, k: int, current: Path, last: bool, confirm_top: int) -> 
     round's scene file, or None when the loop stops."""
     draft = Draft.read(current)  # the round's one parse
     model = Model(draft.scene)
+    # the score tests' program compiles while the round is fitted (its Model holds it)
+    augmented = score_ahead(model, draft) if loop.misfit_expected and not last else None  # noqa: F841
     now = _fit(loop, k, current, model)
     effects = _effects(draft.scene)
     due = [c for c, seen in loop.revisable.values() if seen != effects]
@@ -190,6 +196,7 @@ def _reexamine(loop: _Loop, k: int, current: Path, draft: Draft, now, due, effec
     loop.change = {"action": act.kind, "replaced": _ref(act.removed),
                    "added": _ref(act.added) if act.added else None}
     loop.start = point_estimate(act.judged.model, act.judged.idata)
+    loop.misfit_expected = True
     loop.kept = (now, act)  # the next round's scene is act's: its compiled program is reused
     nxt = _write_round(loop.out, k + 1, act.draft.text(), loop.user_scene)
     if act.added:  # examined just now, against the same other effects
@@ -209,6 +216,7 @@ def _add_winner(loop: _Loop, k: int, draft: Draft, model, now, w) -> Path:
     loop.start = {**point_estimate(model, now.idata),
                   **w.fitted.get("values", {w.fitted["name"]: w.fitted["median"]})}
     new = w.refit.draft if w.refit is not None else draft.with_candidate(cand)
+    loop.misfit_expected = w.consistent_after is not True
     nxt = _write_round(loop.out, k + 1, new.text(), loop.user_scene)
     # chosen against these effects; a group with a strength per joint is one effect per
     # joint from now on (each may be swapped or dropped on its own), a shared one stays one;

@@ -21,6 +21,7 @@ from jax.flatten_util import ravel_pytree
 from scipy import stats
 from scipy.special import gammaln
 
+from ..ahead import Program
 from ..observe.sensor import SENSOR_FAULTS
 
 
@@ -48,25 +49,50 @@ def jacobian(model, values: dict, nuisance: list[str], tested: list[str]):
     """(r, J_theta, J_psi, predictions) at ``values`` for nuisance and tested unknown names.
 
     One compiled forward-mode pass gives the residuals, their Jacobian and the predictions
-    (compiling the physics is the dominant cost, so nothing else is jitted separately).
+    (compiling the physics is the dominant cost, so nothing else is jitted separately). The
+    program takes the values and the data as arguments, so it is compiled once per structure
+    and may be compiled ahead, before the fit gives the values (``jacobian_ahead``).
     """
-    theta0, unravel_theta = ravel_pytree({k: jnp.asarray(values[k]) for k in nuisance})
-    psi0, unravel_psi = ravel_pytree({k: jnp.asarray(values[k]) for k in tested})
-
-    def r_of(x):
-        vals = dict(values)
-        vals.update(unravel_theta(x[: theta0.size]))
-        vals.update(unravel_psi(x[theta0.size:]))
-        pred = model.predict(vals)
-        r = standardized_residuals(model, vals, pred)
-        return r, (r, pred)
-
-    x0 = jnp.concatenate([theta0, psi0])
-    # forward mode: a handful of unknowns against thousands of residuals (the LCP contact
-    # solver's implicit derivative is a custom_jvp, so contact scenes take this path too)
-    J, (r, pred) = jax.jit(jax.jacfwd(r_of, has_aux=True))(x0)
+    vals = {u.name: np.asarray(values[u.name], dtype=float) for u in model.unknowns}
+    n_theta = sum(int(np.size(vals[k])) for k in nuisance)
+    x0 = np.concatenate([np.ravel(vals[k]) for k in [*sorted(nuisance), *sorted(tested)]])
+    J, (r, pred) = _program(model, nuisance, tested)(x0, vals, model.data)
     pred = {k: np.asarray(v) for k, v in pred.items()}
-    return np.asarray(r), np.asarray(J[:, : theta0.size]), np.asarray(J[:, theta0.size:]), pred
+    return np.asarray(r), np.asarray(J[:, :n_theta]), np.asarray(J[:, n_theta:]), pred
+
+
+def jacobian_ahead(model, nuisance: list[str], tested: list[str]) -> None:
+    """Start compiling ``jacobian``'s program for ``model`` in the background
+    (``physdsl.ahead``): its arguments' types are known from the unknowns' shapes."""
+    dtype = jnp.result_type(float)
+    vals = {u.name: jax.ShapeDtypeStruct(tuple(u.shape), dtype) for u in model.unknowns}
+    size = sum(int(np.prod(vals[k].shape)) for k in [*nuisance, *tested])
+    _program(model, nuisance, tested).ahead(jax.ShapeDtypeStruct((size,), dtype), vals,
+                                            model.data)
+
+
+def _program(model, nuisance: list[str], tested: list[str]) -> Program:
+    """(x, values, data) -> (dr/dx, (r, predictions)) with x the nuisance then the tested
+    unknowns, each group flat in name order (``ravel_pytree``'s), the other values as given;
+    compiled once per structure and names."""
+    def build():
+        def fn(x, values, data):
+            theta, unravel_theta = ravel_pytree({k: values[k] for k in nuisance})
+            _, unravel_psi = ravel_pytree({k: values[k] for k in tested})
+
+            def r_of(x):
+                vals = {**values, **unravel_theta(x[:theta.size]), **unravel_psi(x[theta.size:])}
+                pred = model.predict(vals, data=data)
+                r = model.standardized_residuals(vals, pred, data)
+                return r, (r, pred)
+
+            # forward mode: a handful of unknowns against thousands of residuals (the LCP
+            # contact solver's implicit derivative is a custom_jvp, so contact scenes too)
+            return jax.jacfwd(r_of, has_aux=True)(x)
+
+        return Program(fn)
+
+    return model.cached(("score-jacobian", tuple(nuisance), tuple(tested)), build)
 
 
 def project_out(J_theta: np.ndarray, cols: np.ndarray) -> np.ndarray:

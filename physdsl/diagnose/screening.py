@@ -8,13 +8,14 @@ import math
 
 import numpy as np
 
+from .. import ahead
 from ..compile import Model
 from ..errors import PhysError
 from ..expr import constant_value
 from ..syntax.dists import find
 from .candidates import Candidate, material_pairs, physics_candidates, sensor_candidates
 from .edits import Draft, unknown_key
-from .score import ScoreResult, jacobian, project_out, score_test, sensor_columns
+from .score import ScoreResult, jacobian, jacobian_ahead, project_out, score_test, sensor_columns
 from .workflow import noise_unknowns, point_estimate
 
 NUDGE = 1e-4  # one-sided strengths are tested this many prior sds inside the physical side
@@ -32,19 +33,9 @@ def score_all(model, idata, draft: Draft | None = None) -> list[tuple[Candidate,
     """
     draft = draft or Draft.of(model.scene)
     scene = draft.scene
-    cands = physics_candidates(scene)
-    module, usable = draft.module, []
-    for c in cands:
-        if c.material or c.joints:  # columns from their parts' (below)
-            continue
-        try:
-            module = draft.add(c, module)
-            usable.append(c)
-        except Exception:  # noqa: BLE001 - a candidate the language cannot express is skipped
-            continue
-    aug = Model(draft.resolved(module).scene)
+    cands, usable, aug = _augmented(draft)
     values = point_estimate(model, idata)
-    nuisance = [u.name for u in model.unknowns if u.name not in noise_unknowns(model)]
+    nuisance = _nuisance(model)
     tested = [unknown_key(scene, c) for c in usable]
     for c, key in zip(usable, tested):
         values[key] = np.full(aug.scene.unknown(key).shape, tested_value(scene.effect_library[c.name]))
@@ -56,6 +47,44 @@ def score_all(model, idata, draft: Draft | None = None) -> list[tuple[Candidate,
         cols = project_out(J_theta, sensor_columns(aug, values, c.name, c.target[0], pred))
         results.append((c, score_test(c.key, r, cols, 0)))
     return score_order(results)
+
+
+def score_ahead(model, draft: Draft | None = None) -> Model | None:
+    """Start compiling ``score_all``'s program for ``model`` in the background
+    (``physdsl.ahead``): the augmented scene and the program's argument types depend on the
+    scene alone, not on the fit. Returns the augmented Model, which holds the program: keep it
+    until ``score_all`` has run (None where compiling ahead is off or failed)."""
+    if not ahead.enabled():
+        return None
+    draft = draft or Draft.of(model.scene)
+    try:
+        _, usable, aug = _augmented(draft)
+        jacobian_ahead(aug, _nuisance(model), [unknown_key(draft.scene, c) for c in usable])
+    except Exception:  # noqa: BLE001 - an optimisation: score_all meets and reports it
+        return None
+    return aug
+
+
+def _augmented(draft: Draft) -> tuple[list[Candidate], list[Candidate], Model]:
+    """(every physics candidate, those added to the augmented scene one by one, the augmented
+    Model): material-level and joint-group candidates take their columns from their parts'."""
+    cands = physics_candidates(draft.scene)
+    module, usable = draft.module, []
+    for c in cands:
+        if c.material or c.joints:  # columns from their parts' (below)
+            continue
+        try:
+            module = draft.add(c, module)
+            usable.append(c)
+        except Exception:  # noqa: BLE001 - a candidate the language cannot express is skipped
+            continue
+    return cands, usable, Model(draft.resolved(module).scene)
+
+
+def _nuisance(model) -> list[str]:
+    """The unknowns a score test projects out: all but the noise scales."""
+    noise = noise_unknowns(model)
+    return [u.name for u in model.unknowns if u.name not in noise]
 
 
 def score_order(results: list[tuple[Candidate, ScoreResult]]) -> list[tuple[Candidate, ScoreResult]]:

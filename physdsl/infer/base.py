@@ -157,7 +157,7 @@ def gauss_newton_fn(problem: Problem):
 
 
 def _gauss_newton_parts(problem: Problem):
-    gn = cached(problem, "gauss-newton", lambda: jax.jit(problem.gauss_newton))
+    gn = problem.gauss_newton  # jitted (``ahead.Program``): compiled once per structure
     data = problem.data
     return lambda x: gn(x, data)
 

@@ -17,6 +17,7 @@ import numpyro
 from jax.flatten_util import ravel_pytree
 from numpyro.infer.util import constrain_fn, potential_energy, unconstrain_fn
 
+from ..ahead import Program
 from ..compile import PRED_PREFIX
 from ..errors import InferenceError
 from ..physics.forward import FORWARD_MODE_MAX
@@ -48,6 +49,20 @@ def _build_problem(model) -> Problem:
                    draw)
 
 
+def compile_ahead(problem: Problem) -> None:
+    """Start compiling a fit's two large programs in the background (``physdsl.ahead``): the
+    rollout that the posterior pass and the fit's quality read, then the Gauss-Newton program
+    (which the fit calls first, and compiles itself if the rollout is still compiling)."""
+    if problem.gauss_newton is None:
+        return
+    model = problem.model
+    x = jax.ShapeDtypeStruct((problem.dim,), jnp.result_type(float))
+    unravel, _ = unraveler(unconstrained_layout(model))
+    values = jax.eval_shape(lambda x: constrain_fn(model.prior_values, (), {}, unravel(x)), x)
+    model.fit_simulate_ahead(values)
+    problem.gauss_newton.ahead(x, problem.data)
+
+
 def _functions(model):
     """(log density (x, data), to_constrained (x, data), dim) of ``model``'s structure."""
     unravel, dim = unraveler(unconstrained_layout(model))
@@ -61,7 +76,8 @@ def _functions(model):
     with_residuals, neg_log_prior = least_squares_parts(model, unravel)
     if not (model.least_squares and dim <= FORWARD_MODE_MAX):
         return safe_logdensity(logdensity), to_constrained, dim, None, None, None
-    gn = jax.jit(gauss_newton(with_residuals))  # one trace serves the fit and the samplers
+    # one trace serves the fit and the samplers
+    gn = model.cached("gauss-newton", lambda: Program(gauss_newton(with_residuals)))
     return (safe_logdensity(logdensity, gn), to_constrained, dim, gn,
             jax.hessian(neg_log_prior), draw_function(model, unravel, neg_log_prior))
 

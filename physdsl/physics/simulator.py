@@ -16,6 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..ahead import Program
 from ..scene import Scene
 from . import central, idle
 from .forward import FORWARD_MODE_MAX, forward_mode
@@ -75,7 +76,7 @@ class Simulator:
         free = idle.free_scene(scene, model)  # contacts that may never come near (``idle``)
         self._free = None if free is None else Simulator(*free)
         self.trace_count = 0
-        self._jit = jax.jit(self._simulate, static_argnums=1)
+        self._jit = Program(self._simulate, static_argnums=(1,))
 
     def params(self, values) -> dict:
         """The numeric params pytree for ``values`` (masses, inertia, poses, effects, q0, v0)."""
@@ -183,6 +184,12 @@ class Simulator:
             return self._simulate(values, fields)
         return self._jit(values, fields)
 
+    def simulate_ahead(self, values, fields: tuple[str, ...] | None = None) -> None:
+        """Start compiling ``simulate(values, fields)`` in the background (``ahead``);
+        ``values`` may be ``jax.ShapeDtypeStruct``s."""
+        fields = None if fields is None else tuple(sorted(fields))
+        self._jit.ahead({k: _canonical_spec(v) for k, v in dict(values).items()}, fields)
+
 
 # Rollout fields of a decoupled scene (``central.decoupled``) that need no rotation
 TRANSLATION_FIELDS = {"t", "body_pos", "body_vel", "contact_force"}
@@ -191,6 +198,16 @@ TRANSLATION_FIELDS = {"t", "body_pos", "body_vel", "contact_force"}
 def canonical_values(values) -> dict:
     """``values`` as a compiled rollout takes them (``_canonical``): one compile for equal types."""
     return {k: _canonical(v) for k, v in dict(values).items()}
+
+
+def _canonical_spec(x):
+    """``_canonical``'s type for a value or a ``jax.ShapeDtypeStruct``."""
+    if isinstance(x, jax.ShapeDtypeStruct):
+        dtype = x.dtype
+        if jnp.issubdtype(dtype, jnp.floating) or jnp.issubdtype(dtype, jnp.integer) and x.ndim:
+            dtype = jnp.result_type(float)
+        return jax.ShapeDtypeStruct(x.shape, dtype)
+    return _canonical(x)
 
 
 def is_traced(values) -> bool:

@@ -361,3 +361,22 @@ def test_refine_starts_the_next_round_where_the_refit_ended(quadratic, quadratic
     expected = {k: np.asarray(v).tolist() for k, v in point_estimate(quadratic.model,
                                                                      quadratic.idata).items()}
     assert starts[1] == {**expected, key: 4e-4}
+
+
+def test_score_tests_run_the_program_compiled_ahead(quadratic):
+    """``refine`` starts compiling the score tests' program before the round's fit
+    (``screening.score_ahead``); ``score_all`` then runs that executable, with the same scores."""
+    from physdsl.diagnose.screening import score_ahead, score_all
+
+    aug = score_ahead(quadratic.model)
+    assert aug is not None
+    (key, program), = [(k, f) for k, f in aug.compiled.cache.items()
+                       if isinstance(k, tuple) and k[0] == "score-jacobian"]
+    jitted_before = program.jitted._cache_size()
+    assert len(program._ahead) == 1
+    scored = score_all(quadratic.model, quadratic.idata)
+    assert program.jitted._cache_size() == jitted_before  # nothing compiled where it was called
+    assert next(iter(program._ahead.values())).compiled is not None
+    for cand, res in scored:
+        row = _row(quadratic.diagnosis, cand.key)
+        assert res.statistic == pytest.approx(row.statistic, rel=1e-9, abs=1e-12), cand.key

@@ -1,0 +1,159 @@
+"""Compiling ahead: XLA compiles a program in a background thread while this one goes on.
+
+Most of a first ``refine`` is compiling, one program after another on one core, although
+many programs are known before they run: a fit's posterior pass while its Gauss-Newton
+program compiles, the score tests' program while the round is fitted, the second candidate
+refit's programs while the first runs. ``Program.ahead(*args)`` traces and lowers a program
+for those arguments here and hands XLA's compile (which releases the GIL) to a background
+thread; calling the Program with arguments of the same types then runs that executable.
+Tracing stays on the calling thread: numpyro's effect handlers are one stack per process.
+
+A compile not yet started when its program is called is taken back and done by the caller
+(it would otherwise wait behind the queue); a caller that must wait for a running one compiles
+the next queued programs meanwhile, so both cores stay busy. A compile running when the process exits
+is waited for (XLA aborts if the interpreter ends under a running compile; those still queued
+are dropped), so only programs that will likely run should be prepared. ``PHYSDSL_COMPILE_AHEAD=off`` compiles everything where it is
+called, as JAX does.
+"""
+from __future__ import annotations
+
+import os
+import threading
+from concurrent.futures import Future, ThreadPoolExecutor
+
+import jax
+
+ENV = "PHYSDSL_COMPILE_AHEAD"
+OFF = ("off", "0", "false", "no")
+_POOL: ThreadPoolExecutor | None = None
+_POOL_LOCK = threading.Lock()
+
+
+def enabled() -> bool:
+    """Whether ``ahead`` compiles in the background (``PHYSDSL_COMPILE_AHEAD`` not off)."""
+    return os.environ.get(ENV, "").strip().lower() not in OFF
+
+
+def _pool() -> ThreadPoolExecutor:
+    """One background thread: the caller works on the other core (measured on two)."""
+    global _POOL
+    with _POOL_LOCK:
+        if _POOL is None:
+            _POOL = ThreadPoolExecutor(max_workers=1, thread_name_prefix="physdsl-compile")
+        return _POOL
+
+
+def signature(args, static: tuple = ()) -> tuple:
+    """What a compiled executable is specific to: the pytree structure, each leaf's shape,
+    dtype and weak type, and the static arguments."""
+    leaves, tree = jax.tree_util.tree_flatten(args)
+    return tree, tuple(jax.typeof(x) for x in leaves), static
+
+
+def _compile_unless_exiting(lowered):
+    """The background thread's work: nothing once the main thread has ended (the process is
+    exiting and waits for this thread: what is still queued will never be called)."""
+    return lowered.compile() if threading.main_thread().is_alive() else None
+
+
+def _traced(args) -> bool:
+    return any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(args))
+
+
+class _Pending:
+    """A lowered program and its compile: a Future from the background thread, or done here."""
+
+    def __init__(self, lowered):
+        self.lowered = lowered
+        self.compiled = None
+        self.lock = threading.Lock()  # a posterior pass calls its program from threads
+        self.future: Future = _pool().submit(_compile_unless_exiting, lowered)
+        with _QUEUE_LOCK:
+            _QUEUED.append(self)
+
+    def _take_back(self) -> bool:
+        """Compile here if the background thread has not started it (True: done here)."""
+        if self.compiled is None and self.future.cancel():
+            self.compiled = self.lowered.compile()
+            self.lowered = None
+            return True
+        return False
+
+    def result(self):
+        with self.lock:
+            if self.compiled is None and not self._take_back():
+                # running in the background: meanwhile compile what is queued behind it
+                while not self.future.done() and _take_back_next(self):
+                    pass
+                self.compiled = self.future.result()
+                self.lowered = None
+            _unqueue(self)
+            return self.compiled
+
+
+_QUEUED: list[_Pending] = []  # in submission order; a caller waiting for one compiles others
+_QUEUE_LOCK = threading.Lock()
+
+
+def _unqueue(p: _Pending) -> None:
+    with _QUEUE_LOCK:
+        if p in _QUEUED:
+            _QUEUED.remove(p)
+
+
+def _take_back_next(waiting: _Pending) -> bool:
+    """Compile here the first queued program the background thread has not started."""
+    with _QUEUE_LOCK:  # (those started or done can no longer be taken back)
+        _QUEUED[:] = [p for p in _QUEUED if not (p.future.running() or p.future.done())]
+        queued = list(_QUEUED)
+    for p in queued:
+        if p is not waiting and p.lock.acquire(blocking=False):
+            try:
+                if p._take_back():
+                    _unqueue(p)
+                    return True
+            finally:
+                p.lock.release()
+    return False
+
+
+class Program:
+    """``jax.jit(fn, static_argnums)`` whose compile for given arguments may be started ahead
+    (``ahead``); called with arguments of those types it runs that executable, with any
+    others (or tracers) it is the jitted function."""
+
+    def __init__(self, fn, static_argnums: tuple[int, ...] = ()):
+        self.jitted = jax.jit(fn, static_argnums=static_argnums)
+        self.static_argnums = tuple(static_argnums)
+        self._ahead: dict[tuple, _Pending] = {}
+
+    def _split(self, args):
+        static = tuple(args[i] for i in self.static_argnums)
+        dynamic = tuple(a for i, a in enumerate(args) if i not in self.static_argnums)
+        return dynamic, static
+
+    def ahead(self, *args) -> None:
+        """Trace and lower for ``args`` (arrays or ``jax.ShapeDtypeStruct``s) now, compile in the
+        background; nothing where that is off or already done for these types."""
+        if not enabled():
+            return
+        dynamic, static = self._split(args)
+        key = signature(dynamic, static)
+        if key not in self._ahead:
+            self._ahead[key] = _Pending(self.jitted.lower(*args))
+
+    def lower(self, *args):
+        return self.jitted.lower(*args)
+
+    def _cache_size(self) -> int:
+        """Executables made so far (jit's, as ``jax.jit``'s own count, and those ahead)."""
+        return self.jitted._cache_size() + len(self._ahead)
+
+    def __call__(self, *args):
+        if self._ahead:
+            dynamic, static = self._split(args)
+            if not _traced(dynamic):
+                pending = self._ahead.get(signature(dynamic, static))
+                if pending is not None:
+                    return pending.result()(*dynamic)
+        return self.jitted(*args)
