@@ -368,6 +368,8 @@ def run_profiled(name: str, seed: int) -> dict:
                "cpu_s": time.process_time() - c0}
     res["profile"] = {k: v for k, v in timer.totals.items()}
     res["compile_s"] = timer.compile
+    from physdsl import ahead
+    res["ahead"] = dict(ahead.COUNTS)
     res["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     return res
 
@@ -555,6 +557,9 @@ def _print_profile(r: dict) -> None:
         print(f"profile.{k.replace(' ', '_')}.{n}: wall {w:.1f} s, cpu {c:.1f} s, "
               f"compile {comp:.1f} s, calls {calls}")
     print(f"compile_s.{n}: {r['compile_s']:.1f}")
+    if "ahead" in r:  # programs compiled ahead; run: called since; taken back: by their caller
+        a = r["ahead"]
+        print(f"ahead.{n}: prepared {a['prepared']}, run {a['run']}, taken back {a['taken_back']}")
     print(f"peak_rss_mb.{n}: {r['peak_rss_mb']:.0f}")
     if "named_all" in r:
         print(f"named.{n}: {r['named_all']}", flush=True)

@@ -27,6 +27,8 @@ ENV = "PHYSDSL_COMPILE_AHEAD"
 OFF = ("off", "0", "false", "no")
 _POOL: ThreadPoolExecutor | None = None
 _POOL_LOCK = threading.Lock()
+# programs prepared ahead, and of them: run (called), compiled by a caller that took them back
+COUNTS = {"prepared": 0, "run": 0, "taken_back": 0}
 
 
 def enabled() -> bool:
@@ -67,6 +69,8 @@ class _Pending:
         self.lowered = lowered
         self.compiled = None
         self.lock = threading.Lock()  # a posterior pass calls its program from threads
+        self.called = False
+        COUNTS["prepared"] += 1
         self.future: Future = _pool().submit(_compile_unless_exiting, lowered)
         with _QUEUE_LOCK:
             _QUEUED.append(self)
@@ -76,11 +80,15 @@ class _Pending:
         if self.compiled is None and self.future.cancel():
             self.compiled = self.lowered.compile()
             self.lowered = None
+            COUNTS["taken_back"] += 1
             return True
         return False
 
     def result(self):
         with self.lock:
+            if not self.called:
+                self.called = True
+                COUNTS["run"] += 1
             if self.compiled is None and not self._take_back():
                 # running in the background: meanwhile compile what is queued behind it
                 while not self.future.done() and _take_back_next(self):

@@ -380,3 +380,28 @@ def test_score_tests_run_the_program_compiled_ahead(quadratic):
     for cand, res in scored:
         row = _row(quadratic.diagnosis, cand.key)
         assert res.statistic == pytest.approx(row.statistic, rel=1e-9, abs=1e-12), cand.key
+
+
+def test_confirm_compiles_the_refits_it_will_make_ahead(quadratic):
+    """``confirm`` starts compiling its sure refits' fit programs before the baseline
+    (``confirm.refits_ahead``); the refit's own Model of the same scene runs them."""
+    import jax.numpy as jnp
+
+    from physdsl.diagnose.confirm import refits_ahead, sure_refits
+    from physdsl.diagnose.edits import Draft
+    from physdsl.infer.problem import model_problem
+
+    ranked = quadratic.diagnosis.ranking
+    first = next(r for r in ranked if not r.same_as)
+    draft = Draft.of(quadratic.model.scene)
+    picks = sure_refits(ranked, 2, first)
+    models = refits_ahead(draft, ranked, 2, first)
+    assert len(models) == len(picks) >= 2
+    for r, held in zip(picks, models):
+        again = Model(draft.with_candidate(r.candidate).scene)  # as ``refit`` builds it
+        assert again.compiled is held.compiled
+        problem = model_problem(again)
+        gn = problem.gauss_newton
+        assert len(gn._ahead) == 1
+        value, grad, _ = gn(jnp.zeros(problem.dim), problem.data)
+        assert gn.jitted._cache_size() == 0 and np.isfinite(float(value)), r.effect
