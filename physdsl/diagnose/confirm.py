@@ -8,7 +8,7 @@ import time
 
 import numpy as np
 
-from .. import ahead
+from ..ahead import enabled as compiling_ahead
 from ..compile import Model
 from ..infer.fit import quick_fit
 from ..infer.problem import compile_ahead, model_problem
@@ -208,7 +208,7 @@ def refits_ahead(draft: Draft, ranked: list[Ranked], k: int, first) -> list[Mode
     """Where refits run here: start compiling the sure refits' fit programs in the background
     (``infer.problem.compile_ahead``), so each compiles while the baseline and the refits
     before it run; their Models, which hold the programs until the refits take them."""
-    if refit_task.submitter() is not None or not ahead.enabled():
+    if refit_task.submitter() is not None or not compiling_ahead():
         return []
     models = []
     for r in sure_refits(ranked, k, first):

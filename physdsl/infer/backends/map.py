@@ -417,9 +417,29 @@ class MAP(Backend):
         return states, draws, {}
 
 
-@partial(jax.jit, static_argnums=(2, 3, 4))
+NORMALS_BLOCK = 256  # draws per call of the compiled normals: its shape depends on dim alone
+
+
 def _normals(key, start, chains: int, n: int, dim: int):
-    """Standard normals (chains, n, dim): draw j of chain c from fold_in(split(key)[c], j)."""
-    index = start + jnp.arange(n)
-    return jax.vmap(lambda k: jax.vmap(lambda j: jax.random.normal(
-        jax.random.fold_in(k, j), (dim,)))(index))(jax.random.split(key, chains))
+    """Standard normals (chains, n, dim): draw j of chain c from fold_in(split(key)[c], j).
+
+    Each draw's numbers depend on its chain and number alone, so they are made in blocks of
+    ``NORMALS_BLOCK`` (chain key, number) pairs, the last padded: one compiled program per
+    ``dim`` serves every number of chains and draws (threefry compiles in about a second)."""
+    chain_keys = np.asarray(jax.random.split(key, chains))
+    c = np.repeat(np.arange(chains), n)
+    j = int(start) + np.tile(np.arange(n), chains)
+    total = c.size
+    pad = -total % NORMALS_BLOCK
+    c, j = np.concatenate([c, np.zeros(pad, int)]), np.concatenate([j, np.zeros(pad, int)])
+    blocks = [np.asarray(_normal_block(chain_keys[c[i:i + NORMALS_BLOCK]],
+                                       j[i:i + NORMALS_BLOCK], dim))
+              for i in range(0, c.size, NORMALS_BLOCK)]  # (numpy: no op-by-op compiles)
+    return np.concatenate(blocks)[:total].reshape(chains, n, dim)
+
+
+@partial(jax.jit, static_argnums=2)
+def _normal_block(keys, index, dim: int):
+    """Standard normals (len(index), dim): row i from fold_in(keys[i], index[i])."""
+    return jax.vmap(lambda k, i: jax.random.normal(jax.random.fold_in(k, i), (dim,)))(
+        keys, index.astype(jnp.uint32))
