@@ -105,3 +105,26 @@ def test_a_direction_flat_in_the_data_too_is_still_an_error():
                       prior_hessian=lambda x: jnp.zeros((2, 2)))
     with pytest.raises(LaplaceError, match="1 of 2 directions"):
         laplace_sqrt(problem, np.array([0.5, 0.5]))
+
+
+def test_laplace_normals_are_per_draw_and_compile_once_per_dimension():
+    """Draw j of chain c comes from fold_in(split(key)[c], j), however the draws are cut into
+    calls and whatever the chain count: the blocks give exactly the per-draw numbers, and one
+    compiled program serves every chain and draw count of a dimension."""
+    import jax
+
+    from physdsl.infer.backends.map import _normal_block, _normals
+
+    key = jax.random.PRNGKey(11)
+    whole = _normals(key, 0, 3, 300, 5)
+    split = np.concatenate([_normals(key, 0, 3, 120, 5), _normals(key, 120, 3, 180, 5)], axis=1)
+    np.testing.assert_array_equal(whole, split)
+    chain_keys = jax.random.split(key, 3)
+    for c, j in ((0, 0), (1, 17), (2, 299)):
+        one = jax.random.normal(jax.random.fold_in(chain_keys[c], j), (5,))
+        np.testing.assert_array_equal(whole[c, j], np.asarray(one))
+    before = _normal_block._cache_size()
+    _normals(key, 7, 2, 40, 5)
+    _normals(key, 0, 4, 250, 5)
+    assert _normal_block._cache_size() == before
+    assert abs(whole.mean()) < 0.1 and abs(whole.std() - 1) < 0.05
