@@ -9,11 +9,11 @@ thread; calling the Program with arguments of the same types then runs that exec
 Tracing stays on the calling thread: numpyro's effect handlers are one stack per process.
 
 A compile not yet started when its program is called is taken back and done by the caller
-(it would otherwise wait behind the queue); a caller that must wait for a running one compiles
-the next queued programs meanwhile, so both cores stay busy. A compile running when the process exits
-is waited for (XLA aborts if the interpreter ends under a running compile; those still queued
-are dropped), so only programs that will likely run should be prepared. ``PHYSDSL_COMPILE_AHEAD=off`` compiles everything where it is
-called, as JAX does.
+(it would otherwise wait behind the queue); a caller that must wait for a running one
+compiles the next queued programs meanwhile, so both cores stay busy. A compile running when
+the process exits is waited for (XLA aborts if the interpreter ends under a running compile;
+those still queued are dropped), so only programs that will likely run should be prepared.
+``PHYSDSL_COMPILE_AHEAD=off`` compiles everything where it is called, as JAX does.
 """
 from __future__ import annotations
 
