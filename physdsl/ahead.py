@@ -150,9 +150,6 @@ class Program:
         if key not in self._ahead:
             self._ahead[key] = _Pending(self.jitted.lower(*args))
 
-    def lower(self, *args):
-        return self.jitted.lower(*args)
-
     def _cache_size(self) -> int:
         """Executables made so far (jit's, as ``jax.jit``'s own count, and those ahead)."""
         return self.jitted._cache_size() + len(self._ahead)

@@ -188,7 +188,7 @@ class Simulator:
         """Start compiling ``simulate(values, fields)`` in the background (``ahead``);
         ``values`` may be ``jax.ShapeDtypeStruct``s."""
         fields = None if fields is None else tuple(sorted(fields))
-        self._jit.ahead({k: _canonical_spec(v) for k, v in dict(values).items()}, fields)
+        self._jit.ahead(jax.eval_shape(canonical_values, values), fields)
 
 
 # Rollout fields of a decoupled scene (``central.decoupled``) that need no rotation
@@ -198,16 +198,6 @@ TRANSLATION_FIELDS = {"t", "body_pos", "body_vel", "contact_force"}
 def canonical_values(values) -> dict:
     """``values`` as a compiled rollout takes them (``_canonical``): one compile for equal types."""
     return {k: _canonical(v) for k, v in dict(values).items()}
-
-
-def _canonical_spec(x):
-    """``_canonical``'s type for a value or a ``jax.ShapeDtypeStruct``."""
-    if isinstance(x, jax.ShapeDtypeStruct):
-        dtype = x.dtype
-        if jnp.issubdtype(dtype, jnp.floating) or jnp.issubdtype(dtype, jnp.integer) and x.ndim:
-            dtype = jnp.result_type(float)
-        return jax.ShapeDtypeStruct(x.shape, dtype)
-    return _canonical(x)
 
 
 def is_traced(values) -> bool:

@@ -412,7 +412,7 @@ class MAP(Backend):
 
     def sample(self, problem, states, params, key, n, settings, start=0):
         states = jnp.asarray(states)
-        z = _normals(key, jnp.asarray(start), states.shape[0], n, states.shape[1])
+        z = _normals(key, start, states.shape[0], n, states.shape[1])
         draws = states[:, None, :] + jnp.einsum("cij,cnj->cni", jnp.asarray(params["chol"]), z)
         return states, draws, {}
 
