@@ -16,7 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..infer.backends.map import levenberg_marquardt
+from ..infer import levenberg_marquardt
 from ..infer.base import gauss_newton
 from ..infer.problem import model_problem, prior_draws_unconstrained
 from .cost import met
@@ -65,7 +65,7 @@ def optimise(problem: ControlProblem, steps: int = 200, on_step=None, screened: 
     best = None
     for s, i in enumerate(order):
         history: list[float] = []
-        z = levenberg_marquardt(_recorded(curvature, history, s, on_step), starts[i], steps, value)
+        z = levenberg_marquardt.run(_recorded(curvature, history, s, on_step), starts[i], steps, value)
         reached = float(cost(z))
         if best is None or reached < best[1]:
             best = (z, reached, history)

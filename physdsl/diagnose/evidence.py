@@ -19,7 +19,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..infer.backends.map import LaplaceError, find_mode, laplace_sqrt, newton_gain
+from ..infer.backends.map import LaplaceError, find_mode, laplace_sqrt
+from ..infer.levenberg_marquardt import newton_gain
 from ..infer.base import gauss_newton_fn, value_and_grad_fn
 from ..infer.problem import model_problem, start_position
 from .workflow import noise_unknowns, point_estimate

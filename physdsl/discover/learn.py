@@ -21,7 +21,8 @@ from ..compile import Model
 from ..diagnose.edits import load_text
 from ..diagnose.evidence import MODE_SLACK, quadratic_log_evidence
 from ..diagnose.workflow import check_model, point_estimate
-from ..infer.backends.map import levenberg_marquardt, newton_gain
+from ..infer import levenberg_marquardt
+from ..infer.levenberg_marquardt import newton_gain
 from ..infer.base import Settings, cached, gauss_newton, value_fn
 from ..infer.fit import FIT_DRAWS
 from ..infer.problem import (least_squares_parts, model_problem, start_position,
@@ -143,7 +144,7 @@ def fit_residual(base: Fit, target: str, hidden: int = HIDDEN, center=(0.0, 0.0,
     start = {**base.values, key.name: 0.1 * rng.standard_normal(key.shape)}
     problem = model_problem(model)
     gn = learner(problem)
-    x = levenberg_marquardt(gn, start_position(problem, jax.random.PRNGKey(seed), start),
+    x = levenberg_marquardt.run(gn, start_position(problem, jax.random.PRNGKey(seed), start),
                             LEARN_STEPS, value_fn(problem))
     v, g, H = (np.asarray(a, dtype=float) for a in gn(jnp.asarray(x)))
     fit = fitted(model, gn_laplace(model, problem, x, H, seed))

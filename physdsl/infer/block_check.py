@@ -30,7 +30,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import chi2
 
-from .backends.map import FOUND_MODES, find_mode, levenberg_marquardt
+from . import levenberg_marquardt
+from .backends.map import FOUND_MODES, find_mode
 from .base import gauss_newton_fn, value_fn
 from .threads import thread_map
 
@@ -111,7 +112,7 @@ def block_factors(problem, mode, keep, scale=None, on_block=None) -> dict | None
     def refit(k):  # the mode without block k, and its curvature
         sub = without_block(problem, edges[k], edges[k + 1], k == len(edges) - 2)
         gn_sub = _remembered(gauss_newton_fn(sub))
-        x = levenberg_marquardt(gn_sub, mode, STEPS, value_fn(sub))  # (``find_mode``)
+        x = levenberg_marquardt.run(gn_sub, mode, STEPS, value_fn(sub))  # (``find_mode``)
         _, _, Hs = gn_sub(x)  # the refit's last step evaluated it there: not again
         if on_block is not None:
             on_block(1)

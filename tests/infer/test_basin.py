@@ -6,7 +6,9 @@ import pytest
 
 import physdsl  # noqa: F401 - float64
 from physdsl.infer.backends import map as map_backend
-from physdsl.infer.backends.map import known_mode, levenberg_marquardt, newton_gain
+from physdsl.infer import levenberg_marquardt as lm
+from physdsl.infer.backends.map import known_mode
+from physdsl.infer.levenberg_marquardt import newton_gain
 from physdsl.infer.base import Settings, get_backend
 from physdsl.infer.multistart import search
 
@@ -44,12 +46,12 @@ def test_levenberg_marquardt_reaches_the_optimum_of_a_curved_valley():
         calls.append(1)
         return _gn(np.asarray(x))
 
-    x = levenberg_marquardt(gn, np.array([-1.2, 1.0]), 300,
-                            lambda x: _gn(np.asarray(x))[0])
+    x = lm.run(gn, np.array([-1.2, 1.0]), 300,
+               lambda x: _gn(np.asarray(x))[0])
     chi2, chi2_ref = float(_residuals(x) @ _residuals(x)), 2 * ref.cost
     assert abs(chi2 - chi2_ref) <= 1e-6 * chi2_ref, (chi2, chi2_ref)
     np.testing.assert_allclose(x, ref.x, atol=1e-4)  # a 1e-9 nat gain is left: x to ~1e-5
-    assert newton_gain(_gn(x)[2], _gn(x)[1]) <= map_backend.GAIN_TOL
+    assert newton_gain(_gn(x)[2], _gn(x)[1]) <= lm.GAIN_TOL
     assert len(calls) < 60  # tens of steps, not the budget
 
 
@@ -69,7 +71,7 @@ def test_levenberg_marquardt_stops_at_a_jump_it_cannot_cross():
         calls.append(1)
         return gn(x)
 
-    x = levenberg_marquardt(counted, np.array([1.0, 0.0]), 50)  # on the edge itself
+    x = lm.run(counted, np.array([1.0, 0.0]), 50)  # on the edge itself
     np.testing.assert_array_equal(x, [1.0, 0.0])
     assert len(calls) < 20  # the damping's bound ends it, not the step budget
 

@@ -21,7 +21,8 @@ def _counting(fn, counter: list):
 
 
 def test_both_searches_cross_a_non_concave_region_to_one_mode(projectile_model):
-    from physdsl.infer.backends.map import find_mode, lbfgs, levenberg_marquardt
+    from physdsl.infer import levenberg_marquardt
+    from physdsl.infer.backends.map import find_mode, lbfgs
     from physdsl.infer.base import gauss_newton_fn, value_and_grad_fn, value_fn
     from physdsl.infer.problem import model_problem
 
@@ -29,7 +30,7 @@ def test_both_searches_cross_a_non_concave_region_to_one_mode(projectile_model):
     vg = value_and_grad_fn(problem)
     reference = find_mode(problem, EASY_START, steps=100)
     lm_calls, lbfgs_calls = [], []
-    by_lm = levenberg_marquardt(_counting(gauss_newton_fn(problem), lm_calls), HARD_START, 100,
+    by_lm = levenberg_marquardt.run(_counting(gauss_newton_fn(problem), lm_calls), HARD_START, 100,
                                 _counting(value_fn(problem), lm_calls))
     by_lbfgs = lbfgs(_counting(vg, lbfgs_calls), HARD_START, 100)
     for mode in (by_lm, by_lbfgs):

@@ -93,3 +93,41 @@ def test_a_map_run_prints_and_saves_its_basins(throw, tmp_path, capsys):
     assert "data" in best["starts"] and 0.7 < best["rms_sigma"] < 1.3
     assert abs(best["values"]["speed"] - 4.0) < 0.1
     assert "basins found:" in capsys.readouterr().err
+
+
+# Two regions of one log density: near 0 a mode (quickly found); beyond 50 a slope whose
+# Gauss-Newton matrix is far too stiff, so each step gains 1e-8: a search there crawls its
+# whole budget (a start far from the basin in a stiff contact or chaotic rollout)
+def _two_regions(x):
+    x = np.asarray(x, dtype=float)
+    if x[0] < 50.0:
+        return -0.5 * float(x @ x), -x, np.eye(1)
+    return -1e6 - float(x[0]), -np.ones(1), 1e8 * np.eye(1)
+
+
+@pytest.mark.parametrize("mode_rms, crawls_to_the_end", [(1.0, False), (3.0, True)])
+def test_a_search_far_below_a_mode_that_fits_stops(monkeypatch, mode_rms, crawls_to_the_end):
+    """Once one start reaches a mode that fits the data, a start more than MINOR_MODE below it
+    stops at the end of the round (the basins list it as stopped); where the mode does not
+    fit, it runs its whole budget (it might find a better basin)."""
+    from physdsl.infer import multistart as ms
+
+    calls = {"far": 0}
+
+    def gn(x):
+        calls["far"] += float(np.asarray(x)[0]) >= 50.0
+        return _two_regions(x)
+
+    monkeypatch.setattr(ms, "gauss_newton_fn", lambda problem: gn)
+    monkeypatch.setattr(ms, "value_fn", lambda problem: lambda x: _two_regions(x)[0])
+    monkeypatch.setattr(ms, "residual_rms", lambda problem, x, lp=None: mode_rms)
+    steps = 200
+    points, stopped = ms._optimised_all(object(), np.array([[0.7], [80.0]]), steps, None,
+                                        ["near", "far"], 0)
+    assert abs(points[0, 0]) < 1e-6  # the mode
+    assert list(stopped) == [False, crawls_to_the_end is False]
+    if crawls_to_the_end:
+        assert calls["far"] >= steps  # every step of its budget
+        assert points[1, 0] < 80.0
+    else:
+        assert calls["far"] <= 2 * ms.ROUND_STEPS + 1  # the rounds until the mode was found

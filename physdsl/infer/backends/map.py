@@ -18,6 +18,7 @@ import numpy as np
 from ...errors import InferenceError
 from ..base import (Backend, gauss_newton_fn, register_backend,  # noqa: F401 - re-exported
                     value_and_grad_fn, value_fn)
+from .. import levenberg_marquardt
 from ..problem import unconstrained_layout
 from ..threads import thread_map
 
@@ -27,99 +28,8 @@ def find_mode(problem, x0, steps: int = 300) -> np.ndarray:
     where the likelihood is least squares (``Problem.gauss_newton``), else by L-BFGS."""
     gn = gauss_newton_fn(problem)
     if gn is not None:
-        return levenberg_marquardt(gn, x0, steps, value_fn(problem))
+        return levenberg_marquardt.run(gn, x0, steps, value_fn(problem))
     return lbfgs(value_and_grad_fn(problem), x0, steps)
-
-
-def levenberg_marquardt(gn, x0, steps: int = 300, value=None) -> np.ndarray:
-    """Maximise a log density whose curvature the Gauss-Newton matrix H describes; returns the
-    best point found. ``gn``: x -> (log p, gradient, H); ``value``: x -> log p, cheaper (no
-    tangents) for trial points, which are often rejected where the log density jumps (a
-    contact that switches between neighbouring parameter values).
-
-    Steps solve (H + lam diag(H)) d = gradient (Marquardt's scaling: every unknown in its own
-    units). The damping follows the gain ratio rho = actual / predicted gain of each step
-    (Nielsen's update, as in Madsen, Nielsen & Tingleff 2004, "Methods for non-linear least
-    squares problems", alg. 3.16, and levmar/optimistix): a step taken shrinks lam by
-    max(1/3, 1 - (2 rho - 1)^3), a step refused grows it by nu = 2, 4, 8, ... So a run of
-    refusals is undone at once by good steps (a fixed shrink factor left lam large and the
-    steps short for tens of iterations).
-
-    Converged when the full Gauss-Newton step would gain less than ``GAIN_TOL`` (its
-    predicted gain g^T H^-1 g / 2: the gradient measured in the metric of the information,
-    which does not depend on the damping or on the unknowns' units), or when the point no
-    longer moves (a step within rounding of x, or ``STALL`` steps in a row each gaining less
-    than ``GAIN_TOL``: a kink or rounding noise, where the prediction never comes true).
-    A small gain of one damped step is not convergence (the old test stopped there, short of
-    the mode).
-
-    Trajectory fits are badly scaled (a start position seen to a millimetre beside a mass
-    seen to tens of percent) and their log density bends at every contact; L-BFGS there
-    rebuilds its curvature from steps, loses it at each kink and crawls (hundreds of
-    rollouts). H from the rollout's Jacobian knows every scale at once: tens of steps.
-    """
-    x = np.asarray(x0, dtype=float)
-    v, g, H = _evaluate(gn, x)
-    if not np.isfinite(v):
-        return x
-    lam, nu, stalled = 1e-3, 2.0, 0
-    for _ in range(steps):
-        if newton_gain(H, g) <= GAIN_TOL:
-            break  # at the mode: a full Gauss-Newton step would gain nothing that matters
-        scale = np.maximum(np.diag(H), 1e-12 * max(float(np.max(np.abs(np.diag(H)))), 1e-300))
-        taken = False
-        while lam <= LAM_MAX:
-            d = _solve(H + lam * np.diag(scale), g)
-            if d is None:
-                lam, nu = lam * nu, nu * 2.0
-                continue
-            if np.max(np.abs(d)) <= 1e-14 * (1.0 + np.max(np.abs(x))):
-                return x  # the step is lost in rounding: nowhere left to go
-            predicted = float(g @ d - 0.5 * d @ H @ d)  # > 0: H + lam D is positive definite
-            # the first trial in full (most are taken); after a refusal, values first
-            vn = float(value(jnp.asarray(x + d))) if value is not None and nu > 2.0 else None
-            if vn is None or (np.isfinite(vn) and vn > v):
-                vn, g_new, H_new = _evaluate(gn, x + d)
-            rho = (vn - v) / max(predicted, 1e-300) if np.isfinite(vn) else -np.inf
-            if rho > 0:
-                taken = True
-                break
-            lam, nu = lam * nu, nu * 2.0
-        if not taken:
-            break  # no step raises it: against an edge, or a jump at the point itself
-        lam, nu = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), LAM_MIN), 2.0
-        stalled = stalled + 1 if vn - v <= GAIN_TOL else 0
-        x, v, g, H = x + d, vn, g_new, H_new
-        if stalled >= STALL:
-            break
-    return x
-
-
-GAIN_TOL = 1e-9  # log-density units (nats): a gain below this has no statistical meaning
-STALL = 5  # steps in a row gaining less than GAIN_TOL: the search has stalled (a kink)
-LAM_MIN, LAM_MAX = 1e-12, 1e16  # damping bounds: below, a Gauss-Newton step; above, none
-
-
-def newton_gain(H, g) -> float:
-    """The gain g^T H^-1 g / 2 that the full Gauss-Newton step predicts (inf where H is
-    singular): the gradient's size in the metric of the information."""
-    d = _solve(H, g)
-    return float("inf") if d is None else 0.5 * float(g @ d)
-
-
-def _solve(A, b):
-    """A^-1 b by Cholesky (A symmetric positive definite), None where it is not."""
-    try:
-        L = np.linalg.cholesky(A)
-    except np.linalg.LinAlgError:
-        return None
-    d = np.linalg.solve(L.T, np.linalg.solve(L, b))
-    return d if np.all(np.isfinite(d)) else None
-
-
-def _evaluate(gn, x):
-    v, g, H = gn(jnp.asarray(x))
-    return float(v), np.asarray(g, dtype=float), np.asarray(H, dtype=float)
 
 
 def lbfgs(vg, x0, steps: int = 300, memory: int = 10) -> np.ndarray:
