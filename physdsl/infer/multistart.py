@@ -158,7 +158,7 @@ def _optimised_all(problem, xs, steps, on_start, labels, first: int
     one at the noise level would gain little, and a search below would end as a minor mode
     (which ``major_modes`` replaces by the best) or in the same basin. Where no mode fits,
     every search runs to its end: a better basin is what the other starts are for. (The
-    pendulum on a cart: a start from the data crawled for 54 s, 300 steps, to a basin at
+    pendulum on a cart: a start from the data crawled its whole step budget, 54 s, to a basin at
     152 sigma after another start had reached the mode at 1.00 sigma in 5 s.) The rounds make
     the decisions the same whatever the threads' timing. L-BFGS searches (no Gauss-Newton
     curvature, no residual RMS) run whole."""
