@@ -79,7 +79,7 @@ def confirm(model, idata, ranked: list[Ranked], k: int, base_rms: float, echo=No
     draft = draft or Draft.of(model.scene)
     # a sensor fault is refitted where it leads the score tests (on top of the effects' refits)
     first = next((r for r in ranked if not r.same_as), None)
-    compiling = refits_ahead(draft, ranked, k, first)  # noqa: F841 - alive until they are fitted
+    compiling = refits_ahead(draft, sure_refits(ranked, k, first))  # alive until fitted
     base = Baseline(model, idata, draft, base_rms, echo)
     done = 0
     ahead = submit_first(base, ranked, k, first)  # on an executor: the first refits at once
@@ -92,6 +92,8 @@ def confirm(model, idata, ranked: list[Ranked], k: int, base_rms: float, echo=No
         if r.kind == "effect" and (done >= k + EXTRA_REFITS or (done >= k and explained)):
             break
         done += r.kind == "effect"
+        if r.kind == "effect" and not explained and max(k, 2) <= done < k + EXTRA_REFITS:
+            compiling += refits_ahead(draft, _next_effect(ranked, r))  # needed if r fails too
         _refit_row(base, r, ahead, f"refit {done}", echo)
     for r in shared_siblings(ranked):  # the simpler hypothesis inside a confirmed group
         _refit_row(base, r, ahead, "refit (one shared strength)", echo)
@@ -204,14 +206,23 @@ def sure_refits(ranked: list[Ranked], k: int, first) -> list[Ranked]:
     return [r for r in picks if r.kind != "effect" or r in effects]
 
 
-def refits_ahead(draft: Draft, ranked: list[Ranked], k: int, first) -> list[Model]:
-    """Where refits run here: start compiling the sure refits' fit programs in the background
-    (``infer.problem.compile_ahead``), so each compiles while the baseline and the refits
-    before it run; their Models, which hold the programs until the refits take them."""
+def _next_effect(ranked: list[Ranked], r: Ranked) -> list[Ranked]:
+    """The distinct effect ranked next after ``r`` (none where there is none)."""
+    after = ranked[ranked.index(r) + 1:]
+    return [t for t in after if t.kind == "effect" and not t.same_as][:1]
+
+
+def refits_ahead(draft: Draft, rows: list[Ranked]) -> list[Model]:
+    """Where refits run here: start compiling the fit programs of the refits of ``rows`` in
+    the background (``infer.problem.compile_ahead``), so each compiles while the baseline and
+    the refits before it run; their Models, which hold the programs until the refits take
+    them. ``confirm`` prepares the sure refits at its start, and an extra refit (one that runs
+    only while no refit has explained the misfit) while the refit before it runs, once an
+    earlier refit has left the misfit unexplained: it is then likely to be needed."""
     if refit_task.submitter() is not None or not compiling_ahead():
         return []
     models = []
-    for r in sure_refits(ranked, k, first):
+    for r in rows:
         try:
             new = Model(draft.with_candidate(r.candidate).scene)
             compile_ahead(model_problem(new))

@@ -395,7 +395,7 @@ def test_confirm_compiles_the_refits_it_will_make_ahead(quadratic):
     first = next(r for r in ranked if not r.same_as)
     draft = Draft.of(quadratic.model.scene)
     picks = sure_refits(ranked, 2, first)
-    models = refits_ahead(draft, ranked, 2, first)
+    models = refits_ahead(draft, picks)
     assert len(models) == len(picks) >= 2
     for r, held in zip(picks, models):
         again = Model(draft.with_candidate(r.candidate).scene)  # as ``refit`` builds it
@@ -407,3 +407,36 @@ def test_confirm_compiles_the_refits_it_will_make_ahead(quadratic):
         value, grad, _ = gn(jnp.zeros(problem.dim), problem.data)
         assert gn.jitted._cache_size() == jitted_before, r.effect  # the executable made ahead ran
         assert next(iter(gn._ahead.values())).compiled is not None and np.isfinite(float(value))
+
+
+@pytest.mark.parametrize("explained_by, prepared", [
+    (1, []),  # the first refit explains (the second is sure): no extra needed, none prepared
+    (2, ["c"]),  # the second (last sure) explains: the first extra was prepared in vain
+    (4, ["c", "d"]),  # nothing explains before the last: each extra prepared a refit ahead
+    (None, ["c", "d"]),
+])
+def test_confirm_prepares_an_extra_refit_while_the_one_before_runs(monkeypatch, explained_by,
+                                                                     prepared):
+    """With k = 2 sure refits and ``EXTRA_REFITS`` more while nothing explains the misfit: once a
+    refit has left the misfit unexplained, each refit from the k-th on has the next distinct
+    effect's programs prepared ahead (``refits_ahead``) while it runs, up to the budget."""
+    from physdsl.diagnose import confirm as cf
+    from physdsl.diagnose.diagnosis import Ranked
+
+    ranked = [Ranked(i + 1, "effect", name, "x", 1.0, 0.0, 1) for i, name in enumerate("abcdef")]
+    ranked.insert(2, Ranked(9, "effect", "twin", "x", 1.0, 0.0, 1, same_as="b@x"))
+    asked, refitted = [], []
+
+    def refit_row(base, r, ahead, label, echo):
+        refitted.append(r.effect)
+        r.consistent_after = len(refitted) == explained_by
+
+    monkeypatch.setattr(cf, "refits_ahead", lambda draft, rows: asked.append(
+        [r.effect for r in rows]) or [])
+    monkeypatch.setattr(cf, "Baseline", lambda *args: None)
+    monkeypatch.setattr(cf, "doubtful_twin", lambda r, ranked: False)
+    monkeypatch.setattr(cf, "_refit_row", refit_row)
+    cf.confirm(None, None, ranked, 2, 30.0, draft=object())
+    assert asked[0] == ["a", "b"]  # the sure refits, at the start
+    assert [names for names in asked[1:]] == [[p] for p in prepared]
+    assert refitted == ["a", "b", "c", "d"][:max(explained_by or 4, 2)]
