@@ -147,21 +147,21 @@ ROUND_STEPS = 10  # Levenberg-Marquardt steps each unfinished start takes betwee
 
 def _optimised_all(problem, xs, steps, on_start, labels, first: int
                    ) -> tuple[np.ndarray, np.ndarray]:
-    """(the points reached from starts ``xs`` (numbered from ``first``), which of them
-    were stopped short), the
-    starts optimised side by side (``threads``) once the fit's programs are compiled (by a
-    value and a curvature at the first start: two threads would each compile them).
+    """(the points reached from starts ``xs`` (numbered from ``first``), which of them were
+    stopped short), the starts optimised side by side (``threads``) once the fit's programs
+    are compiled (by a value and a curvature at the first start: two threads would each
+    compile them).
 
     Levenberg-Marquardt searches advance in rounds of ``ROUND_STEPS`` steps. Once one has
     converged to a mode that fits the data (residual RMS at most ``RESCREEN_RMS``), every
-    search still more than ``MINOR_MODE`` below it stops (the basins list it so): a basin above
-    one at the noise level would gain little, and a search below would end as a minor mode
-    (which ``major_modes`` replaces by the best) or in the same basin. Where no mode fits,
-    every search runs to its end: a better basin is what the other starts are for. (The
-    pendulum on a cart: a start from the data crawled its whole step budget, 54 s, to a basin at
-    152 sigma after another start had reached the mode at 1.00 sigma in 5 s.) The rounds make
-    the decisions the same whatever the threads' timing. L-BFGS searches (no Gauss-Newton
-    curvature, no residual RMS) run whole."""
+    search still more than ``MINOR_MODE`` below it stops (the basins list it so): a basin
+    above one at the noise level would gain little, and a search below would end as a minor
+    mode (which ``major_modes`` replaces by the best) or in the same basin. Where no mode
+    fits, every search runs to its end: a better basin is what the other starts are for.
+    (The pendulum on a cart: a start from the data crawled its whole step budget, 54 s, to a
+    basin at 152 sigma after another start had reached the mode at 1.00 sigma in 5 s.) The
+    rounds make the decisions the same whatever the threads' timing. L-BFGS searches (no
+    Gauss-Newton curvature, no residual RMS) run whole."""
     xs = np.asarray(xs, dtype=float)
     gn = gauss_newton_fn(problem)
     if len(xs) > 1:
