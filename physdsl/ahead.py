@@ -27,6 +27,7 @@ ENV = "PHYSDSL_COMPILE_AHEAD"
 OFF = ("off", "0", "false", "no")
 _POOL: ThreadPoolExecutor | None = None
 _POOL_LOCK = threading.Lock()
+THREAD_NAME = "physdsl-compile"  # the background thread's name (a profiler tells it apart)
 # programs prepared ahead, and of them: run (called), compiled by a caller that took them back
 COUNTS = {"prepared": 0, "run": 0, "taken_back": 0}
 
@@ -41,7 +42,7 @@ def _pool() -> ThreadPoolExecutor:
     global _POOL
     with _POOL_LOCK:
         if _POOL is None:
-            _POOL = ThreadPoolExecutor(max_workers=1, thread_name_prefix="physdsl-compile")
+            _POOL = ThreadPoolExecutor(max_workers=1, thread_name_prefix=THREAD_NAME)
         return _POOL
 
 
