@@ -46,9 +46,9 @@ put on the functions named in ``PROFILED``; nothing in physdsl changes): per sta
 ``profile.STAGE.CASE: wall W s, cpu C s, compile K s, calls N`` (inclusive: a refit's time
 holds its fits; ``compile`` is JAX's tracing, lowering and XLA compile time spent inside the
 stage, from ``jax.monitoring``; compiles in ``physdsl.ahead``'s background thread are not a
-stage's, and ``compile_ahead_s.CASE`` sums them). ``--all`` runs every hidden-effect case that way, each in its
-own process, and prints ``wall_s.CASE``, ``cpu_s.CASE``, ``compile_s.CASE``,
-``peak_rss_mb.CASE``, ``named.CASE`` (1: every hidden effect named) and
+stage's, and ``compile_ahead_s.CASE`` sums them). ``--all`` runs every hidden-effect case
+that way, each in its own process, and prints ``wall_s.CASE``, ``cpu_s.CASE``,
+``compile_s.CASE``, ``peak_rss_mb.CASE``, ``named.CASE`` (1: every hidden effect named) and
 ``final_rms_sigma.CASE``. Profiled runs start with an empty compilation cache (a user's first
 run) unless ``--warm-cache``.
 

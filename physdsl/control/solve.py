@@ -65,7 +65,8 @@ def optimise(problem: ControlProblem, steps: int = 200, on_step=None, screened: 
     best = None
     for s, i in enumerate(order):
         history: list[float] = []
-        z = levenberg_marquardt.run(_recorded(curvature, history, s, on_step), starts[i], steps, value)
+        z = levenberg_marquardt.run(_recorded(curvature, history, s, on_step), starts[i], steps,
+                                    value)
         reached = float(cost(z))
         if best is None or reached < best[1]:
             best = (z, reached, history)
