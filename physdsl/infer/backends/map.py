@@ -1,11 +1,13 @@
-"""MAP by L-BFGS in unconstrained space, with a Laplace approximation for uncertainty.
+"""MAP in unconstrained space, with a Laplace approximation for uncertainty.
 
-The optimiser (L-BFGS with a backtracking line search that treats a non-finite log density
-as a too-long step) drives one jitted value-and-gradient function of the log
-density, so the physics is compiled once however many iterations, line searches and chains
-run. The Hessian at the mode comes from central differences of that same gradient (no second
-compile). 'Draws' are independent samples of the Gaussian centred at each chain's mode with
-the inverse Hessian as covariance, in unconstrained space, so constrained draws respect supports.
+The optimiser drives one jitted function of the log density, so the physics is compiled once
+however many iterations and chains run: Levenberg-Marquardt on the Gauss-Newton program where
+the likelihood is least squares (``infer/levenberg_marquardt.py``), else L-BFGS (here, with a
+backtracking line search that treats a non-finite log density as a too-long step) on the
+value and gradient. The Hessian at the mode comes from central differences of that same
+gradient (no second compile). 'Draws' are independent samples of the Gaussian centred at each
+chain's mode with the inverse Hessian as covariance, in unconstrained space, so constrained
+draws respect supports.
 """
 from __future__ import annotations
 
