@@ -295,13 +295,12 @@ class StageTimer:
         self.active: list[str] = []
         self.compile = 0.0
         self.compile_ahead = 0.0  # of ``compile``: in the background thread (``physdsl.ahead``)
+        self.ahead_thread = ""  # that thread's name (``install``)
 
     def on_event(self, event: str, seconds: float, **_) -> None:
-        from physdsl.ahead import THREAD_NAME  # (imported by then: physdsl compiles)
-
         if event in COMPILE_EVENTS:
             self.compile += seconds
-            if threading.current_thread().name.startswith(THREAD_NAME):
+            if threading.current_thread().name.startswith(self.ahead_thread):
                 self.compile_ahead += seconds  # beside the stages, not inside one
                 return
             for label in set(self.active):
@@ -338,6 +337,9 @@ class StageTimer:
 
         import jax
 
+        from physdsl.ahead import THREAD_NAME
+
+        self.ahead_thread = THREAD_NAME
         jax.monitoring.register_event_duration_secs_listener(self.on_event)
         importlib.import_module("physdsl.diagnose.refine")
         mods = [m for n, m in list(sys.modules.items()) if n.startswith("physdsl") and m]
