@@ -92,6 +92,12 @@ class Backend:
         stats {name: (chains, n)})."""
         raise NotImplementedError
 
+    def gaussian(self, states, params):
+        """(means (chains, dim), square roots (chains, dim, dim)) where every chain's draws are
+        ``mean + sqrt @ z`` for standard normal z (``output.build_inference_data`` may then
+        read their predictions off a line: ``linear_pass``); None for Markov chains."""
+        return None
+
 
 def register_backend(cls):
     """Class decorator: make a backend available by its ``name``."""

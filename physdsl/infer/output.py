@@ -28,6 +28,7 @@ from .blocks import Pacer
 from .intervals import add_robust, shown_posterior
 from . import left_out, posterior_data
 from .left_out import REACHED_SITE
+from .linear_pass import linearised_pass
 from .threads import split, thread_map, workers
 
 
@@ -38,11 +39,13 @@ PASS_CHUNK = 64  # draws per call of the vmapped posterior pass (one compile for
 
 
 def build_inference_data(model, problem, flat: np.ndarray, stats: dict, settings,
-                         on_chunk=None, stages=None):
+                         on_chunk=None, stages=None, gaussian=None):
     """InferenceData with posterior (unknowns), predictive, observed data and pointwise log-lik.
 
     One rollout per draw (``posterior_pass``), the log-likelihood read off its predictions;
-    ``on_chunk(m)`` after each ``m`` draws (a progress bar). Then the robust intervals
+    ``on_chunk(m)`` after each ``m`` draws (a progress bar). ``gaussian``: (means, square
+    roots) per chain where the draws are Gaussian (a Laplace fit's): their predictions from
+    each mode's line where it holds (``linear_pass``). Then the robust intervals
     (``intervals.add_robust``). ``stages`` (``progress.Stages``): each part under a stage of
     its own, "predictions" (a bar over the draws) and "intervals" (a bar over the block
     check's refits), instead of ``on_chunk``.
@@ -50,8 +53,15 @@ def build_inference_data(model, problem, flat: np.ndarray, stats: dict, settings
     chains, samples, _ = flat.shape
     reached: list = []
     with _stage(stages, "predictions", chains * samples) as st:
-        constrained, loglik = posterior_pass(model, problem, flat.reshape(chains * samples, -1),
-                                             st.advance if st is not None else on_chunk, reached)
+        advance = st.advance if st is not None else on_chunk
+        lined = None if gaussian is None else linearised_pass(model, problem, flat, *gaussian)
+        if lined is not None:
+            constrained, loglik = lined
+            if advance is not None:
+                advance(chains * samples)
+        else:
+            constrained, loglik = posterior_pass(model, problem, flat.reshape(chains * samples, -1),
+                                                 advance, reached)
     left_out.check(model, reached)
     unknowns = set(model.unknown_names)
     shaped = lambda v: np.asarray(v).reshape(chains, samples, *v.shape[1:])  # noqa: E731

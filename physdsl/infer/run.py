@@ -139,7 +139,8 @@ def _run(model, backend, settings, outdir, resume, force, progress, positions, q
     flat = np.concatenate(ckpt["draws"], axis=1)  # (chains, samples, dim)
     stats = {k: np.concatenate([s[k] for s in ckpt["stats"]], axis=1) for k in ckpt["stats"][0]}
     try:
-        idata = build_inference_data(model, problem, flat, stats, settings, stages=stages)
+        idata = build_inference_data(model, problem, flat, stats, settings, stages=stages,
+                                     gaussian=algo.gaussian(states, params))
     except ContactReached:
         if ckpt_path is not None and ckpt_path.exists():
             ckpt_path.unlink()  # (the fit runs again with every contact)
