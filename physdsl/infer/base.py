@@ -95,7 +95,8 @@ class Backend:
     def gaussian(self, states, params):
         """(means (chains, dim), square roots (chains, dim, dim)) where every chain's draws are
         ``mean + sqrt @ z`` for standard normal z (``output.build_inference_data`` may then
-        read their predictions off a line: ``linear_pass``); None for Markov chains."""
+        read their predictions off an expansion about each mean: ``local_pass``); None for
+        Markov chains."""
         return None
 
 

@@ -28,7 +28,7 @@ from .blocks import Pacer
 from .intervals import add_robust, shown_posterior
 from . import left_out, posterior_data
 from .left_out import REACHED_SITE
-from .linear_pass import linearised_pass
+from .local_pass import local_pass
 from .threads import split, thread_map, workers
 
 
@@ -45,7 +45,7 @@ def build_inference_data(model, problem, flat: np.ndarray, stats: dict, settings
     One rollout per draw (``posterior_pass``), the log-likelihood read off its predictions;
     ``on_chunk(m)`` after each ``m`` draws (a progress bar). ``gaussian``: (means, square
     roots) per chain where the draws are Gaussian (a Laplace fit's): their predictions from
-    each mode's line where it holds (``linear_pass``). Then the robust intervals
+    an expansion about each mode where it holds (``local_pass``). Then the robust intervals
     (``intervals.add_robust``). ``stages`` (``progress.Stages``): each part under a stage of
     its own, "predictions" (a bar over the draws) and "intervals" (a bar over the block
     check's refits), instead of ``on_chunk``.
@@ -54,9 +54,9 @@ def build_inference_data(model, problem, flat: np.ndarray, stats: dict, settings
     reached: list = []
     with _stage(stages, "predictions", chains * samples) as st:
         advance = st.advance if st is not None else on_chunk
-        lined = None if gaussian is None else linearised_pass(model, problem, flat, *gaussian)
-        if lined is not None:
-            constrained, loglik = lined
+        local = None if gaussian is None else local_pass(model, problem, flat, *gaussian)
+        if local is not None:
+            constrained, loglik = local
             if advance is not None:
                 advance(chains * samples)
         else:

@@ -111,7 +111,7 @@ def draw_function(model, unravel, neg_log_prior):
         values = constrain(x)
         return read(x, values, model.fit_simulate(values), data)
 
-    draw.constrain = constrain  # x -> the unknowns' constrained values (``linear_pass``)
+    draw.constrain = constrain  # x -> the unknowns' constrained values (``local_pass``)
     return draw
 
 

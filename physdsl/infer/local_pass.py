@@ -1,18 +1,19 @@
-"""The posterior pass of a Laplace fit's draws from its predictions' line, where that line holds.
+"""The posterior pass of a Laplace fit's draws from an expansion of their predictions about
+each mode, where the expansion holds.
 
 A MAP fit's draws are Gaussian about a mode: x = m + S z. Its predictions are read off
-2 dim + 1 rollouts, the mode and one posterior sd either side along each column of S: the
-central differences give the line p(z) = p(0) + D z, and the same rollouts give each
-column's second difference, the curve that the line leaves out. Where that curve stays below
-``CURVE_TOL`` noise sds at every measurement, and the draws farthest out (``CHECKED`` of them,
-rolled out exactly) agree with the line within ``CHECK_TOL`` noise sds, every other draw's
-predictions are the line's and its log-likelihood is read off them (no physics): 2 dim + 1 +
-``CHECKED`` rollouts a mode instead of one a draw. Elsewhere (a contact that starts or ends
-within the posterior's spread, a wrapped angle, a likelihood that leaves out contact pairs)
-the caller rolls out every draw (``output.posterior_pass``).
-
-Measured (``benchmarks/diagnosis.py``): the sliding ball's 500 draws a fit cost 22 ms each,
-the pendulum's 10 ms; here 11 to 21 rollouts a fit.
+2 dim + 1 rollouts, the mode and ``STEP`` posterior sds either side along each column of S:
+their differences give each direction's slope and curve, p(z) = p(0) + sum_k (D_k z_k +
+C_k z_k^2), exact for a prediction that is quadratic along each direction. What they cannot
+see (terms in two directions at once, a contact that starts between the points) the draws
+farthest from the mode show: ``CHECKED`` of them are rolled out, and where their predictions
+differ from the expansion by more than ``CHECK_TOL`` noise sds, or their log-likelihoods by
+more than ``CHECK_LL_TOL`` nats, or a curve exceeds ``CURVE_TOL`` noise sds at one posterior
+sd, the expansion is declined and the caller rolls out every draw (``output.posterior_pass``;
+also where the likelihood leaves out contact pairs, ``left_out``, whose check needs every
+draw's rollout). Otherwise every draw's predictions are the expansion's and its
+log-likelihood is read off them by one small compiled program (no physics): 2 dim + 1 +
+``CHECKED`` rollouts a mode instead of one a draw.
 """
 from __future__ import annotations
 
@@ -24,20 +25,23 @@ from ..compile import PRED_PREFIX
 from .left_out import REACHED_SITE
 from .threads import split, thread_map, workers
 
-CURVE_TOL = 5e-3  # noise sds: the largest second-order term at one posterior sd accepted
-BIAS_TOL = 0.1  # nats: the most the line may take off a draw's expected log-likelihood
-CHECK_TOL = 0.1  # noise sds: the most a far-out draw's line may differ from its rollout
-# (about 3.5 posterior sds out: the curve alone may reach 12 x CURVE_TOL there)
-CHECKED = 4  # draws rolled out exactly per mode, those farthest from it (largest |z|)
+STEP = 2.0  # posterior sds from the mode to the points along each direction: nonlinearity
+# within about 95% of the draws along it is seen by the curve
+CURVE_TOL = 0.05  # noise sds: the largest curve (the z_k^2 term) accepted, at one posterior sd
+CHECKED = 4  # draws rolled out exactly per mode: those farthest from it (largest |z|)
+CHECK_TOL = 0.05  # noise sds: the most a checked draw's predictions may differ from the
+# expansion (at about 3.5 sds out, where a term in two directions is 12x its size at 1 sd)
+CHECK_LL_TOL = 1.0  # nats: the most a checked draw's log-likelihood (all measurements) may
+# differ; 12x smaller at a draw 1 sd out, the error an ELPD would carry
 CHUNK = 64  # draws per call of the compiled read-off (one compile for any number of draws)
 
 
-def linearised_pass(model, problem, flat: np.ndarray, means: np.ndarray, sqrts: np.ndarray
-                    ) -> tuple[dict, dict] | None:
+def local_pass(model, problem, flat: np.ndarray, means: np.ndarray, sqrts: np.ndarray
+               ) -> tuple[dict, dict] | None:
     """(sites, pointwise log-likelihood) of each draw of ``flat`` (chains, samples, dim),
     chain c drawn as ``means[c] + sqrts[c] @ z``, as ``output.posterior_pass`` returns them
-    (draws in chain order), from each mode's line; None where some mode's line does not hold
-    there (or the likelihood checks contact pairs that it leaves out: ``left_out``)."""
+    (draws in chain order), from each mode's expansion; None where some mode's expansion does
+    not hold (or the likelihood checks contact pairs that it leaves out: ``left_out``)."""
     if problem.draw is None or model.ruled_out:
         return None
     chains, samples, dim = flat.shape
@@ -67,46 +71,47 @@ def _same_gaussian(means, sqrts) -> list[list[int]]:
 
 
 def _pass(model, problem, rows, mean, sqrt):
-    """(sites, log-likelihood) of ``rows`` from the line through ``mean``; None where the
-    curve or a far-out draw says that the line does not hold."""
+    """(sites, log-likelihood) of ``rows`` from the expansion about ``mean``; None where a
+    curve or a checked draw says that it does not hold."""
     dim = rows.shape[1]
     z = np.linalg.lstsq(sqrt, (rows - mean).T, rcond=None)[0].T  # (n, dim)
     far = np.argsort(-np.linalg.norm(z, axis=1))[:CHECKED]
-    points = [mean] + [mean + s * sqrt[:, k] for k in range(dim) for s in (1.0, -1.0)]
+    points = [mean] + [mean + s * STEP * sqrt[:, k] for k in range(dim) for s in (1.0, -1.0)]
     exact = _exact(problem, points + [rows[i] for i in far])
+    m = 2 * dim + 1
     preds = _preds(model, [e[0] for e in exact])
-    centre = jax.tree_util.tree_map(lambda a: a[0], preds)
-    plus = jax.tree_util.tree_map(lambda a: a[1:2 * dim + 1:2], preds)
-    minus = jax.tree_util.tree_map(lambda a: a[2:2 * dim + 1:2], preds)
-    # the curve, in noise sds at the mode's values: half the second difference of the
-    # standardised residuals (affine in the predictions at fixed values)
-    at_mode = _values(model, [exact[0][0]] * (2 * dim + 1))
-    s = _read(model, problem, at_mode, jax.tree_util.tree_map(lambda a: a[:2 * dim + 1], preds))[1]
-    curve = 0.5 * (s[1:2 * dim + 1:2] + s[2:2 * dim + 1:2] - 2.0 * s[:1])
-    # what the line takes off a draw's expected log-likelihood (normal noise: -s^2 / 2, each
-    # s short by curve_k z_k^2, E z_k^2 = 1), in nats: the error an ELPD would carry
-    bias = abs(float(np.sum(s[0] * np.sum(curve, axis=0))))
-    if (not np.all(np.isfinite(s)) or np.max(np.abs(curve), initial=0.0) > CURVE_TOL
-            or bias > BIAS_TOL):
+    slope, curve = {}, {}
+    for name, p in preds.items():
+        plus, minus = p[1:m:2], p[2:m:2]
+        slope[name] = (plus - minus) / (2.0 * STEP)
+        curve[name] = (plus + minus - 2.0 * p[:1]) / (2.0 * STEP ** 2)
+    # the curves in noise sds: the standardised residuals are affine in the predictions at
+    # fixed values (the mode's)
+    s = _read(model, problem, _values(model, [exact[0][0]] * m),
+              {k: v[:m] for k, v in preds.items()})[1]
+    curve_sds = (s[1:m:2] + s[2:m:2] - 2.0 * s[:1]) / (2.0 * STEP ** 2)
+    if not np.all(np.isfinite(s)) or np.max(np.abs(curve_sds), initial=0.0) > CURVE_TOL:
         return None
-    slope = jax.tree_util.tree_map(lambda p, m: 0.5 * (p - m), plus, minus)  # (dim, N, D)
-    line = jax.tree_util.tree_map(
-        lambda c, d: c[None] + np.einsum("nk,k...->n...", z, d), centre, slope)
+    expanded = {k: preds[k][0][None] + np.einsum("nk,k...->n...", z, slope[k])
+                + np.einsum("nk,k...->n...", z ** 2, curve[k]) for k in preds}
     values = _values(model, [_constrained(problem, x) for x in rows])
-    ll, s_line = _read(model, problem, values, line)
-    checked = _values(model, [e[0] for e in exact[2 * dim + 1:]])
-    s_far = _read(model, problem, checked, jax.tree_util.tree_map(
-        lambda a: a[2 * dim + 1:], preds))[1]
-    if not np.all(np.isfinite(s_line)) or np.max(np.abs(s_far - s_line[far]), initial=0.0) > CHECK_TOL:
+    ll, s_rows = _read(model, problem, values, expanded)
+    s_far = _read(model, problem, _values(model, [e[0] for e in exact[m:]]),
+                  {k: v[m:] for k, v in preds.items()})[1]
+    ll_far = np.array([sum(np.sum(e[1][k]) for k in ll) for e in exact[m:]])
+    ll_rows = sum(v[far].sum(axis=-1) for v in ll.values())
+    if (not np.all(np.isfinite(s_rows))
+            or np.max(np.abs(s_far - s_rows[far]), initial=0.0) > CHECK_TOL
+            or np.max(np.abs(ll_far - ll_rows), initial=0.0) > CHECK_LL_TOL):
         return None
-    for j, i in enumerate(far):  # the far draws as rolled out
+    for j, i in enumerate(far):  # the checked draws as rolled out
         for name in ll:
-            ll[name][i] = exact[2 * dim + 1 + j][1][name]
-        for name in line:
-            line[name][i] = preds[name][2 * dim + 1 + j]
+            ll[name][i] = exact[m + j][1][name]
+        for name in expanded:
+            expanded[name][i] = preds[name][m + j]
     keep = set(model.unknown_names)
     out = {k: v for k, v in values.items() if k in keep}
-    out.update({PRED_PREFIX + k: v for k, v in line.items()})
+    out.update({PRED_PREFIX + k: v for k, v in expanded.items()})
     return out, ll
 
 
@@ -139,7 +144,7 @@ def _values(model, sites: list) -> dict:
 def _read(model, problem, values: dict, preds: dict) -> tuple[dict, np.ndarray]:
     """(pointwise log-likelihood by observable, standardised residuals (n, R)) of stacked
     values and predictions: one compiled program, ``CHUNK`` draws a call (the last padded)."""
-    fn = model.cached(("linear-read", CHUNK), lambda: jax.jit(jax.vmap(
+    fn = model.cached(("local-read", CHUNK), lambda: jax.jit(jax.vmap(
         lambda v, p, data: (model.pointwise_log_likelihood(v, p, data),
                             model.standardized_residuals(v, p, data)), in_axes=(0, 0, None))))
     n = len(next(iter(preds.values())))

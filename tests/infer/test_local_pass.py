@@ -1,7 +1,7 @@
-"""A Laplace fit's posterior pass from each mode's line (``infer.linear_pass``): where the line
-holds it gives the draws' predictions and log-likelihoods that one rollout a draw gives, from
-a few rollouts; where it does not (a Gaussian far wider than the curve allows), it declines
-and the pass rolls out every draw."""
+"""A Laplace fit's posterior pass from an expansion about each mode (``infer.local_pass``):
+where it holds it gives the draws' predictions and log-likelihoods that one rollout a draw
+gives, from a few rollouts; where it does not (a Gaussian far wider than the curves allow),
+it declines and the pass rolls out every draw."""
 from __future__ import annotations
 
 import jax
@@ -10,7 +10,7 @@ import pytest
 
 import physdsl
 from physdsl.compile import compile as compile_phys
-from physdsl.infer import linear_pass, output
+from physdsl.infer import local_pass, output
 from physdsl.infer.backends.map import MAP
 from physdsl.infer.base import Settings
 from physdsl.infer.problem import make_problem
@@ -19,7 +19,7 @@ from .conftest import PROJECTILE_TRUTH, projectile_text, simulated_scene
 
 SETTINGS = dict(backend="map", chains=2, warmup=50, samples=100, seed=2, progress=False)
 NOISE = 0.5e-3  # m: a precise record (at the conftest's 11 points of 1 cm the drag
-# coefficient is loose enough that the line is off by 0.06 noise sds at one sd: it declines)
+# coefficient is loose enough that the pass declines)
 
 
 @pytest.fixture(scope="module")
@@ -41,26 +41,26 @@ def _pass_counting(monkeypatch) -> list:
     return calls
 
 
-def test_the_line_gives_every_draws_predictions_and_log_likelihood(projectile_model, monkeypatch):
+def test_the_expansion_gives_every_draws_predictions_and_log_likelihood(projectile_model, monkeypatch):
     calls = _pass_counting(monkeypatch)
-    lined = physdsl.infer(projectile_model, **SETTINGS)
+    expanded = physdsl.infer(projectile_model, **SETTINGS)
     assert calls == []  # no draw rolled out one by one
-    monkeypatch.setattr(linear_pass, "CURVE_TOL", -1.0)  # no line holds: every draw rolled out
+    monkeypatch.setattr(local_pass, "CURVE_TOL", -1.0)  # no expansion holds: every draw rolled out
     rolled = physdsl.infer(projectile_model, **SETTINGS)
     assert calls == [SETTINGS["chains"] * SETTINGS["samples"]]
-    for name in lined.posterior.data_vars:  # the same draws
-        np.testing.assert_array_equal(lined.posterior[name].values, rolled.posterior[name].values)
+    for name in expanded.posterior.data_vars:  # the same draws
+        np.testing.assert_array_equal(expanded.posterior[name].values, rolled.posterior[name].values)
     pred = "pred:ball.position"
-    err = np.abs(lined.posterior_predictive[pred].values - rolled.posterior_predictive[pred].values)
-    assert np.max(err) < linear_pass.CHECK_TOL * NOISE
+    err = np.abs(expanded.posterior_predictive[pred].values - rolled.posterior_predictive[pred].values)
+    assert np.max(err) < local_pass.CHECK_TOL * NOISE
     spread = rolled.posterior_predictive[pred].values.std(axis=(0, 1))
-    assert np.max(spread) > 50 * np.max(err)  # the draws' spread is far above the line's error
+    assert np.max(spread) > 50 * np.max(err)  # the draws' spread is far above the expansion's error
     ll = "obs:ball.position"
-    np.testing.assert_allclose(lined.log_likelihood[ll].values, rolled.log_likelihood[ll].values,
+    np.testing.assert_allclose(expanded.log_likelihood[ll].values, rolled.log_likelihood[ll].values,
                                atol=0.01)
 
 
-def test_a_gaussian_wider_than_the_line_allows_is_rolled_out(projectile_model):
+def test_a_gaussian_wider_than_the_expansion_allows_is_rolled_out(projectile_model):
     problem, positions = make_problem(projectile_model, jax.random.PRNGKey(0), 1,
                                       start={k: v for k, v in PROJECTILE_TRUTH.items()})
     states, params, _ = MAP().warmup(problem, positions, jax.random.PRNGKey(1), Settings(warmup=50))
@@ -68,5 +68,5 @@ def test_a_gaussian_wider_than_the_line_allows_is_rolled_out(projectile_model):
     z = np.random.default_rng(0).standard_normal((1, 40, problem.dim))
     for scale, holds in ((1.0, True), (3000.0, False)):
         flat = means[:, None, :] + np.einsum("cij,cnj->cni", scale * sqrts, z)
-        out = linear_pass.linearised_pass(projectile_model, problem, flat, means, scale * sqrts)
+        out = local_pass.local_pass(projectile_model, problem, flat, means, scale * sqrts)
         assert (out is not None) == holds
