@@ -42,9 +42,9 @@ def local_pass(model, problem, flat: np.ndarray, means: np.ndarray, sqrts: np.nd
     chain c drawn as ``means[c] + sqrts[c] @ z``, as ``output.posterior_pass`` returns them
     (draws in chain order), from each mode's expansion; None where some mode's expansion does
     not hold (or the likelihood checks contact pairs that it leaves out: ``left_out``)."""
-    if problem.draw is None or model.ruled_out:
-        return None
     chains, samples, dim = flat.shape
+    if problem.draw is None or model.ruled_out or dim == 0:
+        return None
     sites = [None] * chains
     for group in _same_gaussian(means, sqrts):
         rows = flat[group].reshape(-1, dim)
