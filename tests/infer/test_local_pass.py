@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import physdsl
-from physdsl.compile import compile as compile_phys
+from physdsl.compile import Model, compile as compile_phys
 from physdsl.infer import local_pass, output
 from physdsl.infer.backends.map import MAP
 from physdsl.infer.base import Settings
@@ -70,3 +70,21 @@ def test_a_gaussian_wider_than_the_expansion_allows_is_rolled_out(projectile_mod
         flat = means[:, None, :] + np.einsum("cij,cnj->cni", scale * sqrts, z)
         out = local_pass.local_pass(projectile_model, problem, flat, means, scale * sqrts)
         assert (out is not None) == holds
+
+
+def test_a_cut_fits_later_predictions_are_the_rollouts(projectile_model, monkeypatch):
+    """A leave-future-out fit masks the later times; they are scored from its predictions
+    (``diagnose.lfo``), so the expansion must hold there too."""
+    cut = Model(projectile_model.scene, until=0.25)
+    calls = _pass_counting(monkeypatch)
+    expanded = physdsl.infer(cut, **SETTINGS)
+    assert calls == []
+    monkeypatch.setattr(local_pass, "CURVE_TOL", -1.0)
+    rolled = physdsl.infer(cut, **SETTINGS)
+    pred = "pred:ball.position"
+    later = np.asarray(expanded.posterior_predictive[pred].coords["ball.position:time"]) > 0.25
+    assert later.sum() > 40
+    a = expanded.posterior_predictive[pred].values[:, :, later]
+    b = rolled.posterior_predictive[pred].values[:, :, later]
+    assert np.max(np.abs(a - b)) < local_pass.CHECK_TOL * NOISE
+    assert np.max(b.std(axis=(0, 1))) > 50 * np.max(np.abs(a - b))
