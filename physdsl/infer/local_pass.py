@@ -152,8 +152,13 @@ def _read(model, problem, values: dict, preds: dict) -> tuple[dict, dict]:
     parts = []
     for i in range(0, n, CHUNK):
         m = min(CHUNK, n - i)
-        pad = lambda a: np.concatenate([a[i:i + m], np.repeat(a[i + m - 1:i + m], CHUNK - m, 0)])  # noqa: E731
-        out = fn(*jax.tree_util.tree_map(pad, (values, preds)), problem.data)
+        out = fn(*jax.tree_util.tree_map(lambda a: _padded(a[i:i + m]), (values, preds)),
+                 problem.data)
         parts.append(jax.tree_util.tree_map(lambda a: np.asarray(a)[:m], out))
     ll, scale = jax.tree_util.tree_map(lambda *a: np.concatenate(a), *parts)
     return {k: np.array(v) for k, v in ll.items()}, scale
+
+
+def _padded(a):
+    """``a`` (m, ...) with its last row repeated to ``CHUNK`` rows."""
+    return np.concatenate([a, np.repeat(a[-1:], CHUNK - len(a), 0)])

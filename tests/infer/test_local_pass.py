@@ -24,8 +24,9 @@ NOISE = 0.5e-3  # m: a precise record (at the conftest's 11 points of 1 cm the d
 
 @pytest.fixture(scope="module")
 def projectile_model(tmp_path_factory):
-    return compile_phys(simulated_scene(tmp_path_factory.mktemp("precise"), projectile_text(NOISE),
-                                        PROJECTILE_TRUTH, np.linspace(0.0, 0.5, 101), NOISE, seed=4))
+    folder = tmp_path_factory.mktemp("precise")
+    return compile_phys(simulated_scene(folder, projectile_text(NOISE), PROJECTILE_TRUTH,
+                                        np.linspace(0.0, 0.5, 101), NOISE, seed=4))
 
 
 def _pass_counting(monkeypatch) -> list:
@@ -41,7 +42,8 @@ def _pass_counting(monkeypatch) -> list:
     return calls
 
 
-def test_the_expansion_gives_every_draws_predictions_and_log_likelihood(projectile_model, monkeypatch):
+def test_the_expansion_gives_every_draws_predictions_and_log_likelihood(projectile_model,
+                                                                        monkeypatch):
     calls = _pass_counting(monkeypatch)
     expanded = physdsl.infer(projectile_model, **SETTINGS)
     assert calls == []  # no draw rolled out one by one
@@ -49,9 +51,11 @@ def test_the_expansion_gives_every_draws_predictions_and_log_likelihood(projecti
     rolled = physdsl.infer(projectile_model, **SETTINGS)
     assert calls == [SETTINGS["chains"] * SETTINGS["samples"]]
     for name in expanded.posterior.data_vars:  # the same draws
-        np.testing.assert_array_equal(expanded.posterior[name].values, rolled.posterior[name].values)
+        np.testing.assert_array_equal(expanded.posterior[name].values,
+                                      rolled.posterior[name].values)
     pred = "pred:ball.position"
-    err = np.abs(expanded.posterior_predictive[pred].values - rolled.posterior_predictive[pred].values)
+    a, b = (f.posterior_predictive[pred].values for f in (expanded, rolled))
+    err = np.abs(a - b)
     assert np.max(err) < local_pass.CHECK_TOL * NOISE
     spread = rolled.posterior_predictive[pred].values.std(axis=(0, 1))
     assert np.max(spread) > 50 * np.max(err)  # the draws' spread is far above the expansion's error
