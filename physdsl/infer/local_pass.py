@@ -23,7 +23,7 @@ import numpy as np
 
 from ..compile import PRED_PREFIX
 from .left_out import REACHED_SITE
-from .threads import split, thread_map, workers
+from .problem import drawn
 
 STEP = 2.0  # posterior sds from the mode to the points along each direction: nonlinearity
 # within about 95% of the draws along it is seen by the curve
@@ -78,7 +78,7 @@ def _pass(model, problem, rows, mean, sqrt):
     z = np.linalg.lstsq(sqrt, (rows - mean).T, rcond=None)[0].T  # (n, dim)
     far = np.argsort(-np.linalg.norm(z, axis=1))[:CHECKED]
     points = [mean] + [mean + s * STEP * sqrt[:, k] for k in range(dim) for s in (1.0, -1.0)]
-    exact = _exact(problem, points + [rows[i] for i in far])
+    exact = drawn(problem, points + [rows[i] for i in far])
     m = 2 * dim + 1
     preds = _preds(model, [e[0] for e in exact])
     slope, curve = {}, {}
@@ -113,15 +113,6 @@ def _pass(model, problem, rows, mean, sqrt):
     out = {k: v for k, v in values.items() if k in keep}
     out.update({PRED_PREFIX + k: v for k, v in expanded.items()})
     return out, ll
-
-
-def _exact(problem, xs) -> list:
-    """(sites, log-likelihood) of each of ``xs`` through the fit's compiled rollout, from
-    ``threads.workers()`` threads."""
-    data = problem.data
-    return [o for part in thread_map(lambda part: jax.device_get(
-        [problem.draw(jnp.asarray(x), data)[:2] for x in part]), split(xs, workers()))
-        for o in part]
 
 
 def _constrained(problem, x) -> dict:

@@ -29,7 +29,8 @@ from .intervals import add_robust, shown_posterior
 from . import left_out, posterior_data
 from .left_out import REACHED_SITE
 from .local_pass import local_pass
-from .threads import split, thread_map, workers
+from .problem import drawn
+from .threads import thread_map
 
 
 PLAIN = "plain"  # Settings.intervals of a fit that shows the model's intervals and makes no
@@ -122,9 +123,7 @@ def posterior_pass(model, problem, flat: np.ndarray, on_chunk=None, reached=None
             break
         m = pacer.next(n - done, PASS_CHUNK)
         t0 = time.process_time()  # (CPU: a shared machine's load does not decide)
-        outs = [o for part in thread_map(lambda xs: jax.device_get(  # each thread's calls
-            [problem.draw(jnp.asarray(x), problem.data)[:2] for x in xs]),  # dispatched, one
-            split(flat[done:done + m], workers())) for o in part]  # wait: the calls overlap
+        outs = drawn(problem, flat[done:done + m])
         pacer.record(m, time.process_time() - t0)
         sites, loglik = jax.tree_util.tree_map(lambda *a: np.stack(a), *outs)
         if reached is not None and REACHED_SITE in sites:

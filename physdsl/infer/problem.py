@@ -23,6 +23,7 @@ from ..errors import InferenceError
 from ..physics.forward import FORWARD_MODE_MAX
 from .base import Problem, cached, gauss_newton, safe_logdensity, value_and_grad_fn
 from .left_out import REACHED_SITE
+from .threads import split, thread_map, workers
 
 _PROBLEMS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 INIT_ROUNDS = 10  # rounds of prior draws tried before giving up on a finite start
@@ -113,6 +114,16 @@ def draw_function(model, unravel, neg_log_prior):
 
     draw.constrain = constrain  # x -> the unknowns' constrained values (``local_pass``)
     return draw
+
+
+def drawn(problem, xs) -> list:
+    """(sites, pointwise log-likelihood) of each flat draw of ``xs`` through ``problem.draw``,
+    from ``threads.workers()`` threads: each thread dispatches its calls, then waits once,
+    so the calls overlap."""
+    data = problem.data
+    return [o for part in thread_map(lambda part: jax.device_get(
+        [problem.draw(jnp.asarray(x), data)[:2] for x in part]), split(xs, workers()))
+        for o in part]
 
 
 def least_squares_parts(model, unravel):
