@@ -438,5 +438,5 @@ def test_confirm_prepares_an_extra_refit_while_the_one_before_runs(monkeypatch, 
     monkeypatch.setattr(cf, "_refit_row", refit_row)
     cf.confirm(None, None, ranked, 2, 30.0, draft=object())
     assert asked[0] == ["a", "b"]  # the sure refits, at the start
-    assert [names for names in asked[1:]] == [[p] for p in prepared]
+    assert asked[1:] == [[p] for p in prepared]
     assert refitted == ["a", "b", "c", "d"][:max(explained_by or 4, 2)]
