@@ -16,6 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import contact as cm
+from . import dense
 from .effects.base import Load
 from .kinematics import Kin
 from .rows import place, take
@@ -161,11 +162,11 @@ def compliant_tau(model: PhysicsModel, con: Contacts, M, v, h=None):
     if con.inv_mass is not None:
         inv_meff, inv_t = con.inv_mass, con.inv_mass_t
     elif all(p.friction is None for p in model.pairs):
-        inv_meff, inv_t = jnp.sum(con.Jn * jnp.linalg.solve(M, con.Jn.T).T, -1), None
+        inv_meff, inv_t = jnp.sum(con.Jn * dense.solve(M, con.Jn.T).T, -1), None
     else:
         C, _, nv = con.J.shape
         W = jnp.einsum("ckn,cln->ckl", con.J,
-                       jnp.linalg.solve(M, con.J.reshape(3 * C, nv).T).T.reshape(C, 3, nv))
+                       dense.solve(M, con.J.reshape(3 * C, nv).T).T.reshape(C, 3, nv))
         inv_meff = jnp.einsum("ck,ckl,cl->c", con.normal, W, con.normal)  # n J M^-1 J^T n
         inv_t = jnp.trace(W, axis1=1, axis2=2) - inv_meff
     meff = 1.0 / jnp.where(inv_meff > 0, inv_meff, 1.0)

@@ -1,14 +1,20 @@
 """Small dense solves written as plain array operations, with no LAPACK call.
 
 XLA CPU compiles a whole rollout loop into one kernel when the loop holds no custom call
-(``xla_flags.py``: its small-while-loop pass); ``jax.scipy.linalg.cho_factor`` and
-``jnp.linalg.solve`` are LAPACK custom calls, so a tree's mass-matrix solve kept every chain's
-loop running as one thunk per operation. Here the Cholesky factor and both triangular solves are
-unrolled over the static size n (n column updates each): O(n^3) flops, as LAPACK, and O(n)
-array operations, a few hundred at the tree path's largest size (``tree.TREE_MAX``).
+(``xla_flags.py``: its small-while-loop pass); ``jax.scipy.linalg.cho_factor``, ``lu_factor``
+and ``jnp.linalg.solve`` are LAPACK custom calls, so a solve inside a step kept the whole
+loop running as one thunk per operation.
+- ``spd_solve`` (a tree's mass matrix): the Cholesky factor and both triangular solves
+  unrolled over the static size n: O(n^3) flops, as LAPACK, and O(n) array operations, a few
+  hundred at the tree path's largest size (``tree.TREE_MAX``).
+- ``solve`` (the contact solver's Newton matrices, which are not symmetric, and its other
+  small systems): LU with partial pivoting and the two substitutions each as a loop over the
+  n rows, one small body each, so the interior-point iteration that holds them compiles no
+  larger than with LAPACK's calls (measured in ``docs/physics.md``, "Contact solves").
 """
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 
 
@@ -40,3 +46,53 @@ def cho_solve(L, b):
 def spd_solve(M, b):
     """M^-1 b for a small symmetric positive definite M (a joint-space mass matrix)."""
     return cho_solve(cholesky(M), b)
+
+
+def lu_factor(A):
+    """(LU, perm): P A = L U by Gaussian elimination with partial pivoting, L unit lower
+    (below the diagonal of LU) and U upper, ``perm`` the rows of A in P A's order. A loop
+    over the n columns (one small body, so the Newton step that holds it compiles quickly)
+    for the contact solver's Newton matrices, which are not symmetric."""
+    n = A.shape[0]
+    rows = jnp.arange(n)
+
+    def column(k, lu_perm):
+        A, perm = lu_perm
+        p = jnp.argmax(jnp.where(rows >= k, jnp.abs(A[:, k]), -1.0))
+        at_k, at_p = rows == k, rows == p
+        A_k, A_p = A[k], A[p]
+        A = jnp.where(at_k[:, None], A_p, jnp.where(at_p[:, None], A_k, A))
+        perm = jnp.where(at_k, perm[p], jnp.where(at_p, perm[k], perm))
+        below = rows > k
+        pivot = A[k, k]
+        low = jnp.where(below, A[:, k] / jnp.where(pivot != 0, pivot, 1.0), 0.0)
+        A = A - low[:, None] * jnp.where(below, A[k], 0.0)[None, :]
+        return jnp.where(rows[None, :] == k, jnp.where(below, low, A[:, k])[:, None], A), perm
+
+    return jax.lax.fori_loop(0, n, column, (A, rows))
+
+
+def lu_solve(lu, b):
+    """x with A x = b (b: (n,) or (n, k)) from ``lu_factor(A)``: forward then backward
+    substitution, a loop over the rows each."""
+    LU, perm = lu
+    n = LU.shape[0]
+    rows = jnp.arange(n)
+    lower = jnp.where(rows[:, None] > rows[None, :], LU, 0.0)
+    upper = jnp.where(rows[:, None] < rows[None, :], LU, 0.0)
+    diag = jnp.diagonal(LU)
+
+    def forward(i, y):
+        return y.at[i].set(y[i] - lower[i] @ y)
+
+    def backward(j, x):
+        i = n - 1 - j
+        return x.at[i].set((x[i] - upper[i] @ x) / diag[i])
+
+    y = jax.lax.fori_loop(0, n, forward, b[perm])
+    return jax.lax.fori_loop(0, n, backward, y)
+
+
+def solve(A, b):
+    """A^-1 b for a small square A (general: partial pivoting)."""
+    return lu_solve(lu_factor(A), b)

@@ -13,7 +13,7 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
-from jax.scipy.linalg import lu_factor, lu_solve
+from .. import dense
 
 
 class IPSettings(NamedTuple):
@@ -67,10 +67,10 @@ def _interior_point(A, q, settings: IPSettings):
         mu = jnp.dot(z, w) / m
         # Newton on [A z + q - w; z w - target]: [A -I; W Z][dz; dw] = [-r; rhs]
         # ->  (W + Z A) dz = rhs - Z r,  dw = A dz + r. One factorisation, two solves.
-        lu = lu_factor(jnp.diag(w) + z[:, None] * An)
+        lu = dense.lu_factor(jnp.diag(w) + z[:, None] * An)
 
         def solve(rhs):
-            dz = lu_solve(lu, rhs - z * r)
+            dz = dense.lu_solve(lu, rhs - z * r)
             return dz, An @ dz + r
 
         dz_a, dw_a = solve(-z * w)
@@ -114,7 +114,7 @@ def _lcp_jvp(settings, primals, tangents):
     A, q = primals
     dA, dq = tangents
     z, w = _interior_point(A, q, settings)
-    dz = jnp.linalg.solve(z[:, None] * A + jnp.diag(w), -z * (dA @ z + dq))
+    dz = dense.solve(z[:, None] * A + jnp.diag(w), -z * (dA @ z + dq))
     return z, dz
 
 

@@ -35,8 +35,8 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import jax.numpy as jnp
-from jax.scipy.linalg import cho_factor, cho_solve
 
+from .. import dense
 from .lcp import IP_SETTINGS, IPSettings, lcp_solve
 
 
@@ -109,7 +109,7 @@ def build_lcp(M, v_free, Jn, Jt, mu, e, vn_pre, dist, active, h,
     C, F, n = Jt.shape
     active = jnp.asarray(active, bool)
     J = jnp.concatenate([Jn, Jt.reshape(C * F, n)], axis=0)
-    minv_jt = cho_solve(cho_factor(M), J.T)
+    minv_jt = dense.solve(M, J.T)
     delassus = J @ minv_jt
     hit = impacts(e, vn_pre, Jn @ v_free, dist, h, settings)
     b = normal_target(hit, dist, h, settings)
@@ -154,7 +154,7 @@ def position_velocity(lcp: ContactLCP, v_next, Jn, dist, active, h):
     D = lcp.delassus[:C, :C]
     ridge = 1e-12 * jnp.max(jnp.abs(jnp.diagonal(D))) + jnp.finfo(D.dtype).tiny
     D = jnp.where(rows[:, None] & rows[None, :], D, 0.0) + jnp.diag(jnp.where(rows, ridge, 1.0))
-    c = jnp.linalg.solve(D, want)
+    c = dense.solve(D, want)
     return v_next + lcp.minv_jt[:, :C] @ jnp.where(rows, c, 0.0)
 
 
