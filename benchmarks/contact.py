@@ -44,8 +44,8 @@ def loss_fn(implicit: bool):
 
     def loss(p, f):
         M = 0.5 * (p["M"] + p["M"].T)
-        v, lam_n, _, _ = solve_lcp_step(M, p["v_free"], f["Jn"], f["Jt"], p["mu"], p["e"],
-                                        f["vn_pre"], f["dist"], f["active"], H, settings)
+        v, lam_n, *_ = solve_lcp_step(M, p["v_free"], f["Jn"], f["Jt"], p["mu"], p["e"],
+                                      f["vn_pre"], f["dist"], f["active"], H, settings)
         return jnp.sum(v ** 2) + jnp.sum(lam_n)
 
     return loss

@@ -23,7 +23,7 @@ from ..compile import Model
 from ..errors import ModelError
 from ..infer.multistart import prior_centre
 from ..infer.problem import model_problem, unconstrained_layout, unraveler
-from ..physics.integrate import State, step
+from ..physics.integrate import start_state, step
 from .cost import CONTROL, control_effects
 from .problem import constrain, flat_slices
 
@@ -74,7 +74,7 @@ class Transition:
         prm = dict(prm, effects=effects)
         q = prm["q0"].astype(x.dtype).at[self.qadr].set(x[:len(self.joints)])
         v = prm["v0"].astype(x.dtype).at[self.vadr].set(x[len(self.joints):])
-        s = State(q, v, jnp.zeros(pm.ncon, x.dtype), jnp.zeros((pm.ncon, 3), x.dtype))
+        s = start_state(pm, q, v)
         h = self.period / self.substeps
         s = jax.lax.fori_loop(0, self.substeps, lambda k, s: step(pm, prm, s, k * h, h), s)
         return jnp.concatenate([s.q[self.qadr], s.v[self.vadr]])

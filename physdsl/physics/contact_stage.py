@@ -221,9 +221,17 @@ def _row_bodies(model: PhysicsModel):
     return ra, rb
 
 
-def lcp_velocity(model: PhysicsModel, con: Contacts, M, v, v_free, h):
+def lcp_velocity(model: PhysicsModel, con: Contacts, M, v, v_free, h, warm=None):
     """Next velocity from the LCP step, the velocity that advances positions (with the
-    time-of-impact correction, see ``contact.step``) and the normal force (impulse / h) per row."""
+    time-of-impact correction, see ``contact.step``), the normal force (impulse / h) per row
+    and the LCP's solution (the next step's ``warm`` start)."""
     out = cm.solve_lcp_step(M, v_free, con.Jn, con.Jt, con.mu, con.e, con.Jn @ v, con.dist,
-                            con.active, h)
-    return out.v, out.v_position, out.lam_n / h
+                            con.active, h, warm=warm)
+    return out.v, out.v_position, out.lam_n / h, out.solution
+
+
+def lcp_rows(model: PhysicsModel) -> int:
+    """Rows of the model's contact LCP (``contact.lcp_size``): 4 friction directions per
+    contact where any pair has friction (``detect_all``)."""
+    friction = any(p.friction is not None for p in model.pairs)
+    return cm.lcp_size(model.ncon, 4 if friction else 0)

@@ -332,6 +332,8 @@ def _tangent_carries(body, nc: int, nk: int, dc, dx, dk) -> list[int]:
     while True:
         reached = set(seeds) | {ins[nc + k] for k in carried}
         for eqn in body.eqns:  # coarse: every output of an equation that reads a reached input
+            if eqn.primitive.name == "stop_gradient":  # (a contact solver's warm start)
+                continue
             if any(isinstance(v, core.Var) and v in reached for v in eqn.invars):
                 reached.update(v for v in eqn.outvars if not isinstance(v, core.DropVar))
         more = {k for k, v in enumerate(body.outvars[:nk])

@@ -44,6 +44,18 @@ class State(NamedTuple):
     v: jnp.ndarray  # (nv,)
     contact_force: jnp.ndarray  # (C,) normal force of the last step
     contact_normal: jnp.ndarray  # (C, 3)
+    # LCP scenes: (z, w) of the last contact step's LCP, the next one's warm start (zeros:
+    # none, after a step with no contact near); None elsewhere
+    lcp_warm: tuple | None = None
+
+
+def start_state(model: PhysicsModel, q, v) -> State:
+    """The state at (q, v) before any step: no contact force, no warm start yet."""
+    C = model.ncon
+    warm = None
+    if C and model.contact_model == "lcp":
+        warm = (jnp.zeros(cs.lcp_rows(model), q.dtype),) * 2
+    return State(q, v, jnp.zeros(C, q.dtype), jnp.zeros((C, 3), q.dtype), warm)
 
 
 def total_gravity(model: PhysicsModel, prm: dict):
@@ -161,14 +173,17 @@ def _lcp_step(model, prm, state, t, h, forward_only=False):
         impulse is zero, as while a ball leaves a link within the contact margin), then the
         impact's position correction; else the LCP's semi-implicit Euler step itself."""
         prm, q, v, kin, con, v_free = o
-        v_next, v_position, cf = cs.lcp_velocity(model, con, joint_mass_matrix(model, prm, kin),
-                                                 v, v_free, hh)
+        v_next, v_position, cf, solution = cs.lcp_velocity(
+            model, con, joint_mass_matrix(model, prm, kin), v, v_free, hh, state.lcp_warm)
         if model.integrator == "rk4":
             s = _rk4(model, prm, state._replace(q=q, v=v + (v_next - v_free)), t0, hh)
             q_next, v_next = integrate_q(model, s.q, v_position - v_next, hh), s.v
         else:
             q_next = integrate_q(model, q, v_position, hh)
-        return State(q_next, v_next, cf * (hh / h), con.normal)
+        # the start only: no derivative flows through it (nor a tangent carried for it)
+        warm = None if state.lcp_warm is None else tuple(jax.lax.stop_gradient(x)
+                                                         for x in solution)
+        return State(q_next, v_next, cf * (hh / h), con.normal, warm)
 
     # The scene's integrator up to the first time a gap closes (tau), or over the whole step
     # where no contact is near (tau = h): one copy of it, outside the branch, for both (the
@@ -195,7 +210,8 @@ def _lcp_step(model, prm, state, t, h, forward_only=False):
         return lcp((prm, s.q, s.v, kin2, con2, v_free2), t + tau, h2)
 
     def apart(o):
-        return State(o[0].q, o[0].v, jnp.zeros(model.ncon, v.dtype), con.normal)
+        cold = None if state.lcp_warm is None else tuple(jnp.zeros_like(x) for x in state.lcp_warm)
+        return State(o[0].q, o[0].v, jnp.zeros(model.ncon, v.dtype), con.normal, cold)
 
     return either(near, contact, apart, (s, tau), forward_only)
 
@@ -260,5 +276,4 @@ def _rk4(model: PhysicsModel, prm: dict, state: State, t, h, a1=None):
     a4 = _accel(model, prm, integrate_q(model, q, v3, h), v4, state, t + h, t)
     v_avg = (v + 2.0 * v2 + 2.0 * v3 + v4) / 6.0
     a_avg = (a1 + 2.0 * a2 + 2.0 * a3 + a4) / 6.0
-    return State(integrate_q(model, q, v_avg, h), v + h * a_avg, state.contact_force,
-                 state.contact_normal)
+    return state._replace(q=integrate_q(model, q, v_avg, h), v=v + h * a_avg)

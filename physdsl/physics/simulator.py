@@ -20,7 +20,7 @@ from ..ahead import Program
 from ..scene import Scene
 from . import central, idle
 from .forward import FORWARD_MODE_MAX, forward_mode
-from .integrate import State, kinematics, step
+from .integrate import State, kinematics, start_state, step
 from .markers import marker_tracks
 from .model import build_model
 from .params import evaluate_params
@@ -61,6 +61,11 @@ def observe(model: PhysicsModel, prm: dict, q, v):
     return kin.pos, kin.quat, lin, w, stack(jp), stack(jv)
 
 
+def _recorded(state):
+    """What a rollout records of a state: all but the contact solver's warm start."""
+    return state._replace(lcp_warm=None) if isinstance(state, State) else state
+
+
 class Simulator:
     """Compiled simulation of one Scene; ``simulate`` is pure in ``values`` and jit/vmap/grad-able."""
 
@@ -87,9 +92,7 @@ class Simulator:
         ``checkpoint``: recompute each step in reverse mode (O(T) memory)."""
         model = self.model
         dtype = prm["ref_pos"].dtype
-        C = model.ncon
-        s0 = State(prm["q0"].astype(dtype), prm["v0"].astype(dtype), jnp.zeros(C, dtype),
-                   jnp.zeros((C, 3), dtype))
+        s0 = start_state(model, prm["q0"].astype(dtype), prm["v0"].astype(dtype))
         # not checkpointed: differentiated in forward mode alone (``integrate.either``)
         traj = self._scan(lambda s, t, h: step(model, prm, s, t, h, not checkpoint), s0,
                           checkpoint)
@@ -111,7 +114,8 @@ class Simulator:
 
     def _scan(self, advance, s0, checkpoint: bool):
         """``s0`` and the state after each recorded step (pytree of (T+1, ...) leaves), by
-        ``advance(state, t, h)`` over the model's substeps."""
+        ``advance(state, t, h)`` over the model's substeps; a contact solver's warm start
+        (``State.lcp_warm``) is carried, not recorded."""
         model = self.model
         h = model.dt / model.substeps
         ns = model.substeps
@@ -124,12 +128,13 @@ class Simulator:
                 state = advance(state, i * h, h)
             else:
                 state, _ = jax.lax.scan(substep, state, i * ns + jnp.arange(ns))
-            return state, state
+            return state, _recorded(state)
 
         if checkpoint:
             record = jax.checkpoint(record)
         _, traj = jax.lax.scan(record, s0, jnp.arange(model.nsteps))
-        return jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a[None], b]), s0, traj)
+        return jax.tree_util.tree_map(lambda a, b: jnp.concatenate([a[None], b]),
+                                      _recorded(s0), traj)
 
     def _simulate(self, values, fields=None) -> Rollout:
         self.trace_count += 1

@@ -9,9 +9,10 @@
 from .compliant import (COMPLIANT_SETTINGS, CompliantSettings, FrictionStep, compliant_forces,
                         damping_ratio)
 from .detect import PAIRS, SHAPE_CODES, ContactPoints, contact_count, contact_margin, detect
-from .lcp import IP_SETTINGS, IPSettings, lcp_residual, lcp_solve
+from .lcp import IP_SETTINGS, IPSettings, lcp_residual, lcp_solve, lcp_solve_warm
 from .step import (LCP_SETTINGS, ContactLCP, ContactStep, Impacts, LCPSettings, build_lcp,
-                   impact_time, impacts, normal_target, restitution_threshold, solve_lcp_step)
+                   impact_time, impacts, lcp_size, normal_target, restitution_threshold,
+                   solve_lcp_step)
 
 __all__ = [
     "COMPLIANT_SETTINGS", "CompliantSettings", "ContactLCP", "ContactPoints", "ContactStep",
@@ -19,5 +20,5 @@ __all__ = [
     "IPSettings", "Impacts", "impact_time", "impacts",
     "IP_SETTINGS", "LCPSettings", "LCP_SETTINGS", "PAIRS", "SHAPE_CODES", "build_lcp",
     "compliant_forces", "contact_count", "contact_margin", "damping_ratio", "detect",
-    "lcp_residual", "lcp_solve", "normal_target", "restitution_threshold", "solve_lcp_step",
+    "lcp_residual", "lcp_size", "lcp_solve", "lcp_solve_warm", "normal_target", "restitution_threshold", "solve_lcp_step",
 ]

@@ -28,6 +28,9 @@ class IPSettings(NamedTuple):
         every residual of w = A z + q is below it (normalised units): the implicit derivative
         does not depend on how the solution was reached, and most contact steps converge in
         a third of the iteration budget.
+    warm_shift: a warm start (``lcp_solve_warm``: the last step's solution) is moved this far
+        into the interior, relative to its largest entry, before the first iteration.
+    restart: a warm start not converged after this many iterations starts again from ones.
     """
 
     iterations: int = 30
@@ -35,6 +38,8 @@ class IPSettings(NamedTuple):
     step_fraction: float = 0.99
     floor: float = 1e-14
     implicit: bool = True
+    warm_shift: float = 1e-8
+    restart: int = 12
 
 
 IP_SETTINGS = IPSettings()
@@ -54,8 +59,10 @@ def _max_step(x, dx, fraction):
     return jnp.minimum(1.0, fraction * jnp.min(ratio, initial=jnp.inf))
 
 
-def _interior_point(A, q, settings: IPSettings):
-    """Solve the LCP; returns (z, w) in the caller's units (unrollable when not implicit)."""
+def _interior_point(A, q, settings: IPSettings, warm=None):
+    """Solve the LCP; returns (z, w) in the caller's units (unrollable when not implicit).
+    ``warm``: a start (z, w) in the caller's units, e.g. the last step's solution; used where
+    all its entries are positive (``lcp_solve_warm``), else the iteration starts from ones."""
     m = q.shape[0]
     a_scale, q_scale = _scales(A, q)
     An, qn = A / a_scale, q / q_scale  # z = zn q_scale / a_scale, w = wn q_scale
@@ -96,35 +103,60 @@ def _interior_point(A, q, settings: IPSettings):
         resid = jnp.max(jnp.abs(An @ z + qn - w))
         return (i < settings.iterations) & ((gap > settings.tolerance) | (resid > settings.tolerance))
 
-    z, w, _ = jax.lax.while_loop(unfinished, lambda s: (*body(None, s), s[2] + 1),
-                                 (ones, ones, jnp.zeros((), jnp.int32)))
+    z0, w0, warmed = ones, ones, jnp.zeros((), bool)
+    if warm is not None:  # the last solution, normalised and moved into the interior
+        zw, ww = warm[0] * a_scale / q_scale, warm[1] / q_scale
+        warmed = jnp.all(zw > 0) & jnp.all(ww > 0)
+        z0 = jnp.where(warmed, zw + settings.warm_shift * jnp.max(zw), ones)
+        w0 = jnp.where(warmed, ww + settings.warm_shift * jnp.max(ww), ones)
+
+    def iterate(state):
+        z, w, i = state
+        # a warm start that has not converged by ``restart`` starts over from ones
+        again = warmed & (i == settings.restart)
+        z, w = body(None, (jnp.where(again, ones, z), jnp.where(again, ones, w)))
+        return z, w, i + 1
+
+    z, w, _ = jax.lax.while_loop(unfinished, iterate, (z0, w0, jnp.zeros((), jnp.int32)))
     return z * q_scale / a_scale, w * q_scale
 
 
-@partial(jax.custom_jvp, nondiff_argnums=(2,))
-def _lcp_implicit(A, q, settings):
-    return _interior_point(A, q, settings)[0]
+@partial(jax.custom_jvp, nondiff_argnums=(3,))
+def _lcp_implicit(A, q, warm, settings):
+    return _interior_point(A, q, settings, warm)
 
 
 @_lcp_implicit.defjvp
 def _lcp_jvp(settings, primals, tangents):
     # At the solution F = [A z + q - w; z * w] = 0. Eliminating dw gives
     # (Z A + W) dz = -Z (dA z + dq): one linear solve, linear in the tangents, so reverse mode
-    # is its transpose (dL/dq = -Z u, dL/dA = -Z u z^T with (Z A + W)^T u = g).
-    A, q = primals
-    dA, dq = tangents
-    z, w = _interior_point(A, q, settings)
+    # is its transpose (dL/dq = -Z u, dL/dA = -Z u z^T with (Z A + W)^T u = g). The warm
+    # start takes no part: the solution does not depend on where the iteration began.
+    A, q, warm = primals
+    dA, dq, _ = tangents
+    z, w = _interior_point(A, q, settings, warm)
     dz = dense.solve(z[:, None] * A + jnp.diag(w), -z * (dA @ z + dq))
-    return z, dz
+    return (z, w), (dz, dA @ z + A @ dz + dq)
 
 
 def lcp_solve(A, q, settings: IPSettings = IP_SETTINGS):
     """z >= 0 with w = A z + q >= 0 and z.w = 0 (approximately, to the barrier floor)."""
+    return lcp_solve_warm(A, q, None, settings)[0]
+
+
+def lcp_solve_warm(A, q, warm, settings: IPSettings = IP_SETTINGS):
+    """(z, w) of ``lcp_solve``, the iteration started from ``warm`` = (z, w) (the last step's
+    solution: a resting or rolling contact's LCP changes little from step to step; None or
+    any entry not positive: from ones). Where the solution is not unique (a friction pyramid's
+    opposite edges both at zero slip) another start may end at another solution with the same
+    net impulses; the derivative is taken at the one reached."""
     if q.shape[0] == 0:
-        return q
+        return q, q
+    if warm is not None:
+        warm = tuple(jax.lax.stop_gradient(x) for x in warm)
     if settings.implicit:
-        return _lcp_implicit(A, q, settings)
-    return _interior_point(A, q, settings)[0]
+        return _lcp_implicit(A, q, warm, settings)
+    return _interior_point(A, q, settings, warm)
 
 
 def lcp_residual(A, q, z):

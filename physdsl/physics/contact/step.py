@@ -37,7 +37,7 @@ from typing import NamedTuple
 import jax.numpy as jnp
 
 from .. import dense
-from .lcp import IP_SETTINGS, IPSettings, lcp_solve
+from .lcp import IP_SETTINGS, IPSettings, lcp_solve_warm
 
 
 class LCPSettings(NamedTuple):
@@ -138,6 +138,7 @@ class ContactStep(NamedTuple):
     lam_n: jnp.ndarray       # (C,) normal impulses (N s)
     lam_t: jnp.ndarray       # (C, F) friction impulses along the cone edges
     v_position: jnp.ndarray  # (n,) velocity that advances positions (v plus impact corrections)
+    solution: tuple  # (z, w) of the LCP: the next step's warm start (``lcp_solve_warm``)
 
 
 def position_velocity(lcp: ContactLCP, v_next, Jn, dist, active, h):
@@ -158,19 +159,27 @@ def position_velocity(lcp: ContactLCP, v_next, Jn, dist, active, h):
     return v_next + lcp.minv_jt[:, :C] @ jnp.where(rows, c, 0.0)
 
 
+def lcp_size(C: int, F: int) -> int:
+    """Rows of a step's LCP with C contacts and F friction directions each (``build_lcp``)."""
+    return C * (2 + F) if F else C
+
+
 def solve_lcp_step(M, v_free, Jn, Jt, mu, e, vn_pre, dist, active, h,
-                   settings: LCPSettings = LCP_SETTINGS) -> ContactStep:
+                   settings: LCPSettings = LCP_SETTINGS, warm=None) -> ContactStep:
     """One contact step: velocity, impulses and the position-update velocity.
 
     Impulses (N s), not forces: lam_n = f_n h. Shapes: M (n,n) SPD, v_free (n,), Jn (C,n),
-    Jt (C,F,n) (F = 0: frictionless), mu/e/vn_pre/dist/active (C,), h scalar.
+    Jt (C,F,n) (F = 0: frictionless), mu/e/vn_pre/dist/active (C,), h scalar. ``warm``: the
+    last step's ``solution`` (the solver starts there, ``lcp_solve_warm``), or None.
     """
     C, F, _ = Jt.shape
     if C == 0:
-        return ContactStep(v_free, jnp.zeros((0,), v_free.dtype),
-                           jnp.zeros((0, F), v_free.dtype), v_free)
+        empty = jnp.zeros((0,), v_free.dtype)
+        return ContactStep(v_free, empty, jnp.zeros((0, F), v_free.dtype), v_free,
+                           (empty, empty))
     lcp = build_lcp(M, v_free, Jn, Jt, mu, e, vn_pre, dist, active, h, settings)
-    z = jnp.where(lcp.mask, lcp_solve(lcp.A, lcp.q, settings.solver), 0.0)
+    solution = lcp_solve_warm(lcp.A, lcp.q, warm, settings.solver)
+    z = jnp.where(lcp.mask, solution[0], 0.0)
     v_next = v_free + lcp.minv_jt @ z[:C + C * F]
     v_pos = position_velocity(lcp, v_next, Jn, dist, active, h)
-    return ContactStep(v_next, z[:C], z[C:C + C * F].reshape(C, F), v_pos)
+    return ContactStep(v_next, z[:C], z[C:C + C * F].reshape(C, F), v_pos, solution)

@@ -147,7 +147,7 @@ def test_inactive_contacts_are_inert():
 
 
 def test_no_contacts():
-    v, lam_n, lam_t, _ = solve_lcp_step(jnp.eye(2), jnp.ones(2), jnp.zeros((0, 2)),
+    v, lam_n, lam_t, *_ = solve_lcp_step(jnp.eye(2), jnp.ones(2), jnp.zeros((0, 2)),
                                         jnp.zeros((0, 4, 2)), *(jnp.zeros(0),) * 4,
                                         jnp.zeros(0, bool), H)
     np.testing.assert_array_equal(v, 1.0)
@@ -227,8 +227,8 @@ def loss_fn(implicit):
     def loss(theta, p):
         M, v_free, Jn, Jt, mu, e, vn_pre, dist, active = p
         M = M + theta["dM"]
-        v, lam_n, _, _ = solve_lcp_step(M, v_free + theta["dv"], Jn, Jt, mu + theta["dmu"],
-                                        e + theta["de"], vn_pre, dist, active, H, settings)
+        v, lam_n, *_ = solve_lcp_step(M, v_free + theta["dv"], Jn, Jt, mu + theta["dmu"],
+                                      e + theta["de"], vn_pre, dist, active, H, settings)
         return jnp.dot(wv, v) + jnp.dot(wl, lam_n) / H
 
     return loss
