@@ -10,7 +10,7 @@ loop running as one thunk per operation.
 - ``solve`` (the contact solver's Newton matrices, which are not symmetric, and its other
   small systems): LU with partial pivoting and the two substitutions each as a loop over the
   n rows, one small body each, so the interior-point iteration that holds them compiles no
-  larger than with LAPACK's calls (measured in ``docs/physics.md``, "Contact solves").
+  larger than with LAPACK's calls (measured in ``docs/physics.md``, "Seventh pass").
 """
 from __future__ import annotations
 

@@ -210,7 +210,8 @@ def _lcp_step(model, prm, state, t, h, forward_only=False):
         return lcp((prm, s.q, s.v, kin2, con2, v_free2), t + tau, h2)
 
     def apart(o):
-        cold = None if state.lcp_warm is None else tuple(jnp.zeros_like(x) for x in state.lcp_warm)
+        warm = state.lcp_warm
+        cold = None if warm is None else tuple(jnp.zeros_like(x) for x in warm)
         return State(o[0].q, o[0].v, jnp.zeros(model.ncon, v.dtype), con.normal, cold)
 
     return either(near, contact, apart, (s, tau), forward_only)

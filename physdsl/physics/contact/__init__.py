@@ -20,5 +20,6 @@ __all__ = [
     "IPSettings", "Impacts", "impact_time", "impacts",
     "IP_SETTINGS", "LCPSettings", "LCP_SETTINGS", "PAIRS", "SHAPE_CODES", "build_lcp",
     "compliant_forces", "contact_count", "contact_margin", "damping_ratio", "detect",
-    "lcp_residual", "lcp_size", "lcp_solve", "lcp_solve_warm", "normal_target", "restitution_threshold", "solve_lcp_step",
+    "lcp_residual", "lcp_size", "lcp_solve", "lcp_solve_warm", "normal_target",
+    "restitution_threshold", "solve_lcp_step",
 ]
