@@ -70,11 +70,7 @@ def forward_kinematics(model: PhysicsModel, prm: dict, q, v) -> Kin:
         qD_p, tD_p = D[tj.parent] if tj.parent >= 0 else ident
         v_p = vel[tj.parent] if tj.parent >= 0 else zero6
         J_p = jac[tj.parent] if tj.parent >= 0 else jnp.zeros((6, nv), dtype=dtype)
-        root = tj.parent < 0  # the parent is the world: its motion is the identity, traced
-        # as no operations at all (the same numbers: x * 1 + 0 = x)
-        R_p = None if root else quat_to_mat(qD_p)
-        R_D = None  # the joint's rotation matrix where it is known already
-        on_parent = (lambda x: x) if root else (lambda x: mv(R_p, x))  # noqa: E731
+        R_p = quat_to_mat(qD_p)
         qi = q[tj.qadr:tj.qadr + tj.nq]
         vi = v[tj.vadr:tj.vadr + tj.nv]
         ref_p, ref_q = prm["ref_pos"][i], prm["ref_quat"][i]
@@ -85,27 +81,23 @@ def forward_kinematics(model: PhysicsModel, prm: dict, q, v) -> Kin:
         elif tj.kind == "hinge":
             a, p = prm["axis"][i], prm["anchor"][i]
             qJ = quat_axis_angle(a, qi[0])
-            qD = qJ if root else quat_mul(qD_p, qJ)
-            R_J = quat_to_mat(qJ)
-            R_D = R_J if root else None  # (the world's child turns by its joint alone)
-            tD = on_parent(p - mv(R_J, p))
-            a_w, p_w = on_parent(a), on_parent(p)
-            if not root:
-                tD, p_w = tD + tD_p, p_w + tD_p
+            qD = quat_mul(qD_p, qJ)
+            tD = mv(R_p, p - mv(quat_to_mat(qJ), p)) + tD_p
+            a_w, p_w = mv(R_p, a), mv(R_p, p) + tD_p
             Si = jnp.concatenate([a_w, jnp.cross(p_w, a_w)])[:, None]
         elif tj.kind == "slider":
             a = prm["axis"][i]
-            qD, a_w = qD_p, on_parent(a)
-            tD = a_w * qi[0] if root else a_w * qi[0] + tD_p
+            qD, a_w = qD_p, mv(R_p, a)
+            tD = a_w * qi[0] + tD_p
             Si = jnp.concatenate([jnp.zeros(3, dtype=dtype), a_w])[:, None]
         elif tj.kind == "ball":
             p = prm["anchor"][i]
             qQ = normalize(qi)
             RQ = quat_to_mat(qQ)
-            qD = qQ if root else quat_mul(qD_p, qQ)
-            tD = on_parent(p - mv(RQ, p)) + tD_p
-            E = RQ if root else mm(R_p, RQ)
-            Si = jnp.concatenate([E, mm(skew(on_parent(p) + tD_p), E)], 0)
+            qD = quat_mul(qD_p, qQ)
+            tD = mv(R_p, p - mv(RQ, p)) + tD_p
+            E = mm(R_p, RQ)
+            Si = jnp.concatenate([E, mm(skew(mv(R_p, p) + tD_p), E)], 0)
         elif tj.kind == "free":
             x, qb = qi[:3], normalize(qi[3:])
             R = quat_to_mat(qb)
@@ -119,7 +111,7 @@ def forward_kinematics(model: PhysicsModel, prm: dict, q, v) -> Kin:
         qD, tD = _barrier(model, (qD, tD))
         D[i] = (qD, tD)
         quat[i] = normalize(quat_mul(qD, ref_q))
-        pos[i] = mv(quat_to_mat(qD) if R_D is None else R_D, ref_p) + tD
+        pos[i] = mv(quat_to_mat(qD), ref_p) + tD
         vel[i] = v_p + (mv(Si, vi) if tj.nv else zero6)
         if tj.kind == "free":
             c = cross_motion(vel[i], mv(Si[:, 3:], vi[3:])) + cross_motion(v_p, mv(Si[:, :3], vi[:3]))
