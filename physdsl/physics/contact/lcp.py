@@ -93,8 +93,14 @@ def _interior_point(A, q, settings: IPSettings, warm=None):
         return jnp.where(ok, z_new, z), jnp.where(ok, w_new, w)  # singular Newton matrix: stay
 
     ones = jnp.ones_like(qn)
+    z0, w0, warmed = ones, ones, jnp.zeros((), bool)
+    if warm is not None:  # the last solution, normalised and moved into the interior
+        zw, ww = warm[0] * a_scale / q_scale, warm[1] / q_scale
+        warmed = jnp.all(zw > 0) & jnp.all(ww > 0)
+        z0 = jnp.where(warmed, zw + settings.warm_shift * jnp.max(zw), ones)
+        w0 = jnp.where(warmed, ww + settings.warm_shift * jnp.max(ww), ones)
     if not settings.implicit:  # unrolled derivative: a fixed loop reverse mode can run through
-        z, w = jax.lax.fori_loop(0, settings.iterations, body, (ones, ones))
+        z, w = jax.lax.fori_loop(0, settings.iterations, body, (z0, w0))
         return z * q_scale / a_scale, w * q_scale
 
     def unfinished(state):
@@ -102,13 +108,6 @@ def _interior_point(A, q, settings: IPSettings, warm=None):
         gap = jnp.max(z * w)
         resid = jnp.max(jnp.abs(An @ z + qn - w))
         return (i < settings.iterations) & ((gap > settings.tolerance) | (resid > settings.tolerance))
-
-    z0, w0, warmed = ones, ones, jnp.zeros((), bool)
-    if warm is not None:  # the last solution, normalised and moved into the interior
-        zw, ww = warm[0] * a_scale / q_scale, warm[1] / q_scale
-        warmed = jnp.all(zw > 0) & jnp.all(ww > 0)
-        z0 = jnp.where(warmed, zw + settings.warm_shift * jnp.max(zw), ones)
-        w0 = jnp.where(warmed, ww + settings.warm_shift * jnp.max(ww), ones)
 
     def iterate(state):
         z, w, i = state
