@@ -58,67 +58,82 @@ def _depths(model: PhysicsModel):
     return d or [0]
 
 
+def _joint_motion(tj, prm: dict, i: int, qi, parent, dtype):
+    """Joint i's motion D_i = D_parent o J_i(q_i) as (quaternion, translation), its world motion
+    subspace S_i, and D_i's rotation matrix where it is at hand (else None). ``parent`` is the
+    parent's (quaternion, translation, rotation matrix), or None for the world: its identity
+    motion is then traced as no operations at all (the same numbers: x * 1 + 0 = x)."""
+    on_parent = (lambda x: x) if parent is None else (lambda x: mv(parent[2], x))  # noqa: E731
+    then = (lambda q_: q_) if parent is None else (lambda q_: quat_mul(parent[0], q_))  # noqa: E731
+    shift = (lambda t: t) if parent is None else (lambda t: t + parent[1])  # noqa: E731
+    ref_p, ref_q = prm["ref_pos"][i], prm["ref_quat"][i]
+    q_p, t_p = (jnp.array([1.0, 0.0, 0.0, 0.0], dtype=dtype), jnp.zeros(3, dtype=dtype)) \
+        if parent is None else parent[:2]
+    R_D = None
+    if tj.kind == "fixed":
+        qD, tD = q_p, t_p
+        Si = jnp.zeros((6, 0), dtype=dtype)
+    elif tj.kind == "hinge":
+        a, p = prm["axis"][i], prm["anchor"][i]
+        qJ = quat_axis_angle(a, qi[0])
+        R_J = quat_to_mat(qJ)
+        qD = then(qJ)
+        R_D = R_J if parent is None else None  # the world's child turns by its joint alone
+        tD = shift(on_parent(p - mv(R_J, p)))
+        a_w, p_w = on_parent(a), shift(on_parent(p))
+        Si = jnp.concatenate([a_w, jnp.cross(p_w, a_w)])[:, None]
+    elif tj.kind == "slider":
+        a_w = on_parent(prm["axis"][i])
+        qD, tD = q_p, shift(a_w * qi[0])
+        Si = jnp.concatenate([jnp.zeros(3, dtype=dtype), a_w])[:, None]
+    elif tj.kind == "ball":
+        p = prm["anchor"][i]
+        qQ = normalize(qi)
+        RQ = quat_to_mat(qQ)
+        qD = then(qQ)
+        tD = shift(on_parent(p - mv(RQ, p)))
+        E = RQ if parent is None else mm(parent[2], RQ)
+        Si = jnp.concatenate([E, mm(skew(shift(on_parent(p))), E)], 0)
+    elif tj.kind == "free":
+        x, qb = qi[:3], normalize(qi[3:])
+        R = quat_to_mat(qb)
+        qD = quat_mul(qb, quat_conj(ref_q))
+        tD = x - mv(quat_to_mat(qD), ref_p)
+        St = jnp.concatenate([jnp.zeros((3, 3), dtype=dtype), jnp.eye(3, dtype=dtype)], 0)
+        Sr = jnp.concatenate([R, mm(skew(x), R)], 0)
+        Si = jnp.concatenate([St, Sr], 1)
+    else:  # pragma: no cover - model.py rejects other kinds
+        raise ValueError(tj.kind)
+    return qD, tD, Si, R_D
+
+
 def forward_kinematics(model: PhysicsModel, prm: dict, q, v) -> Kin:
     """Poses, velocities, Jacobians and spatial inertias of every body at state (q, v)."""
     B, nv = model.nbody, model.nv
     dtype = q.dtype if q.size else prm["ref_pos"].dtype
-    ident = (jnp.array([1.0, 0.0, 0.0, 0.0], dtype=dtype), jnp.zeros(3, dtype=dtype))
     D, pos, quat, vel, jac, cacc, acc0, S = ([None] * B for _ in range(8))  # per body
     zero6 = jnp.zeros(6, dtype=dtype)
     for i in model.order:
         tj = model.joints[i]
-        qD_p, tD_p = D[tj.parent] if tj.parent >= 0 else ident
-        v_p = vel[tj.parent] if tj.parent >= 0 else zero6
-        J_p = jac[tj.parent] if tj.parent >= 0 else jnp.zeros((6, nv), dtype=dtype)
-        R_p = quat_to_mat(qD_p)
+        root = tj.parent < 0
+        parent = None if root else (*D[tj.parent], quat_to_mat(D[tj.parent][0]))
+        v_p = zero6 if root else vel[tj.parent]
+        J_p = jnp.zeros((6, nv), dtype=dtype) if root else jac[tj.parent]
         qi = q[tj.qadr:tj.qadr + tj.nq]
         vi = v[tj.vadr:tj.vadr + tj.nv]
-        ref_p, ref_q = prm["ref_pos"][i], prm["ref_quat"][i]
-        c = zero6
-        if tj.kind == "fixed":
-            qD, tD = qD_p, tD_p
-            Si = jnp.zeros((6, 0), dtype=dtype)
-        elif tj.kind == "hinge":
-            a, p = prm["axis"][i], prm["anchor"][i]
-            qJ = quat_axis_angle(a, qi[0])
-            qD = quat_mul(qD_p, qJ)
-            tD = mv(R_p, p - mv(quat_to_mat(qJ), p)) + tD_p
-            a_w, p_w = mv(R_p, a), mv(R_p, p) + tD_p
-            Si = jnp.concatenate([a_w, jnp.cross(p_w, a_w)])[:, None]
-        elif tj.kind == "slider":
-            a = prm["axis"][i]
-            qD, a_w = qD_p, mv(R_p, a)
-            tD = a_w * qi[0] + tD_p
-            Si = jnp.concatenate([jnp.zeros(3, dtype=dtype), a_w])[:, None]
-        elif tj.kind == "ball":
-            p = prm["anchor"][i]
-            qQ = normalize(qi)
-            RQ = quat_to_mat(qQ)
-            qD = quat_mul(qD_p, qQ)
-            tD = mv(R_p, p - mv(RQ, p)) + tD_p
-            E = mm(R_p, RQ)
-            Si = jnp.concatenate([E, mm(skew(mv(R_p, p) + tD_p), E)], 0)
-        elif tj.kind == "free":
-            x, qb = qi[:3], normalize(qi[3:])
-            R = quat_to_mat(qb)
-            qD = quat_mul(qb, quat_conj(ref_q))
-            tD = x - mv(quat_to_mat(qD), ref_p)
-            St = jnp.concatenate([jnp.zeros((3, 3), dtype=dtype), jnp.eye(3, dtype=dtype)], 0)
-            Sr = jnp.concatenate([R, mm(skew(x), R)], 0)
-            Si = jnp.concatenate([St, Sr], 1)
-        else:  # pragma: no cover - model.py rejects other kinds
-            raise ValueError(tj.kind)
+        qD, tD, Si, R_D = _joint_motion(tj, prm, i, qi, parent, dtype)
         qD, tD = _barrier(model, (qD, tD))
         D[i] = (qD, tD)
-        quat[i] = normalize(quat_mul(qD, ref_q))
-        pos[i] = mv(quat_to_mat(qD), ref_p) + tD
+        quat[i] = normalize(quat_mul(qD, prm["ref_quat"][i]))
+        pos[i] = mv(quat_to_mat(qD) if R_D is None else R_D, prm["ref_pos"][i]) + tD
         vel[i] = v_p + (mv(Si, vi) if tj.nv else zero6)
+        c = zero6
         if tj.kind == "free":
             c = cross_motion(vel[i], mv(Si[:, 3:], vi[3:])) + cross_motion(v_p, mv(Si[:, :3], vi[:3]))
         elif tj.nv:
             c = cross_motion(v_p, mv(Si, vi))
         cacc[i] = c
-        acc0[i] = (acc0[tj.parent] if tj.parent >= 0 else zero6) + c
+        acc0[i] = (zero6 if root else acc0[tj.parent]) + c
         S[i] = Si
         vel[i], Si = _barrier(model, (vel[i], Si))
         jac[i] = J_p.at[:, tj.vadr:tj.vadr + tj.nv].set(Si) if tj.nv else J_p
