@@ -1,6 +1,8 @@
 """The persistent compilation cache across processes: ``physdsl infer`` of one scene in a fresh
 process with an empty cache, again in another fresh process, then on a copy whose measurements
-are a new noise draw (same shape). Each run is a whole CLI command (import, compile, fit, write).
+are a new noise draw (same shape); then a first and a second with ``PHYSDSL_TRACE_CACHE=off``
+(the second traces every program again and loads its executable: as before
+physdsl/traces.py). Each run is a whole CLI command (import, compile, fit, write).
 
 Run: .venv/bin/python benchmarks/cache.py [SCENE.phys] [--backend map]
 (prints ``name: value`` lines; the default scene is examples/thrown_ball/thrown_ball.phys)
@@ -25,8 +27,11 @@ CLI = "import sys; from physdsl.cli import main; sys.exit(main())"
 NOISE = 0.005  # added to every measured coordinate for the changed-data run (m, rad, ...)
 
 
-def _run(scene: Path, out: Path, cache: Path, backend: str) -> tuple[float, float]:
-    """(wall s, CPU s of the child) of one ``physdsl infer`` in a fresh process."""
+def _run(scene: Path, out: Path, cache: Path, backend: str, traces: bool = True
+         ) -> tuple[float, float]:
+    """(wall s, CPU s of the child) of one ``physdsl infer`` in a fresh process; ``traces``:
+    with the traced programs kept (else it traces every program, loading only executables)."""
+    env = {**os.environ, **({} if traces else {"PHYSDSL_TRACE_CACHE": "off"})}
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     done = subprocess.run([sys.executable, "-c", CLI, "--cache-dir", str(cache), "infer",
@@ -60,6 +65,11 @@ def _entries(cache: Path) -> int:
     return sum(1 for p in cache.glob("*-cache")) if cache.exists() else 0
 
 
+def _traces(cache: Path) -> int:
+    """Traced programs kept (physdsl/traces.py): a second process loads them, traces nothing."""
+    return sum(1 for p in cache.glob("traces/*.trace"))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("scene", nargs="?", default=ROOT / "examples/thrown_ball/thrown_ball.phys",
@@ -77,15 +87,22 @@ def main() -> None:
         _redraw(changed)
         name = args.scene.name
         walls = {}
-        for key, folder in (("first", same), ("second", same), ("changed_data", changed)):
-            entries = _entries(cache)
-            wall, cpu = _run(folder / name, tmp / f"out_{key}", cache, args.backend)
+        runs = (("first", same, True), ("second", same, True), ("changed_data", changed, True),
+                # as before traces were kept: its programs' executables (other modules than
+                # the exported ones) kept by a first run without traces, then a second
+                ("first_tracing", same, False), ("second_tracing", same, False))
+        for key, folder, traces in runs:
+            entries, traced = _entries(cache), _traces(cache)
+            wall, cpu = _run(folder / name, tmp / f"out_{key}", cache, args.backend, traces)
             walls[key] = wall
             print(f"{key}_wall_s: {wall:.1f}")
             print(f"{key}_cpu_s: {cpu:.1f}")
             print(f"{key}_new_entries: {_entries(cache) - entries}")
+            print(f"{key}_new_traces: {_traces(cache) - traced}")
         print(f"second_over_first_wall: {walls['second'] / walls['first']:.3f}")
         print(f"changed_data_over_first_wall: {walls['changed_data'] / walls['first']:.3f}")
+        print(f"second_over_second_tracing_wall: "
+              f"{walls['second'] / walls['second_tracing']:.3f}")
     print(f"load_after: {os.getloadavg()[0]:.1f}")
 
 

@@ -23,6 +23,8 @@ from concurrent.futures import Future, ThreadPoolExecutor
 
 import jax
 
+from . import traces
+
 ENV = "PHYSDSL_COMPILE_AHEAD"
 OFF = ("off", "0", "false", "no")
 _POOL: ThreadPoolExecutor | None = None
@@ -129,17 +131,45 @@ def _take_back_next(waiting: _Pending) -> bool:
 class Program:
     """``jax.jit(fn, static_argnums)`` whose compile for given arguments may be started ahead
     (``ahead``); called with arguments of those types it runs that executable, with any
-    others (or tracers) it is the jitted function."""
+    others (or tracers) it is the jitted function. With an ``identity`` (a name that says what
+    it computes, the same in every process), its trace for given argument types is kept on
+    disk and loaded by later processes instead of traced again (``physdsl.traces``)."""
 
-    def __init__(self, fn, static_argnums: tuple[int, ...] = ()):
+    def __init__(self, fn, static_argnums: tuple[int, ...] = (), identity: str | None = None):
+        self.fn = fn
         self.jitted = jax.jit(fn, static_argnums=static_argnums)
         self.static_argnums = tuple(static_argnums)
+        self.identity = identity
         self._ahead: dict[tuple, _Pending] = {}
+        self._stored: dict[tuple, traces.Stored | None] = {}
+        self._storing = threading.Lock()  # one trace per types where threads call it first
 
     def _split(self, args):
         static = tuple(args[i] for i in self.static_argnums)
         dynamic = tuple(a for i, a in enumerate(args) if i not in self.static_argnums)
         return dynamic, static
+
+    def _bound(self, static):
+        """``fn`` of the dynamic arguments alone, ``static`` put back in their places."""
+        def fn(*dynamic):
+            args, rest = [], iter(dynamic)
+            for i in range(len(dynamic) + len(static)):
+                args.append(static[self.static_argnums.index(i)] if i in self.static_argnums
+                            else next(rest))
+            return self.fn(*args)
+        return fn
+
+    def _stored_program(self, dynamic, static, key) -> "traces.Stored | None":
+        """The program kept on disk for arguments of ``key`` (loaded, or traced and written
+        now), or None where there is none to keep (no identity, the cache off, no export)."""
+        if self.identity is None or traces.folder() is None:
+            return None
+        if key not in self._stored:
+            with self._storing:
+                if key not in self._stored:
+                    self._stored[key] = traces.load_or_export(self.identity,
+                                                              self._bound(static), dynamic, key)
+        return self._stored[key]
 
     def ahead(self, *args) -> None:
         """Trace and lower for ``args`` (arrays or ``jax.ShapeDtypeStruct``s) now, compile in the
@@ -149,17 +179,56 @@ class Program:
         dynamic, static = self._split(args)
         key = signature(dynamic, static)
         if key not in self._ahead:
-            self._ahead[key] = _Pending(self.jitted.lower(*args))
+            stored = self._stored_program(dynamic, static, key)
+            lowered = self.jitted.lower(*args) if stored is None else \
+                stored.call.lower(*jax.tree_util.tree_leaves(dynamic))
+            self._ahead[key] = _Pending(lowered)
 
     def _cache_size(self) -> int:
-        """Executables made so far (jit's, as ``jax.jit``'s own count, and those ahead)."""
-        return self.jitted._cache_size() + len(self._ahead)
+        """Executables made so far (jit's, as ``jax.jit``'s own count, those loaded from disk,
+        and those ahead)."""
+        loaded = sum(s.call._cache_size() for s in self._stored.values() if s is not None)
+        return self.jitted._cache_size() + loaded + len(self._ahead)
 
     def __call__(self, *args):
-        if self._ahead:
-            dynamic, static = self._split(args)
-            if not _traced(dynamic):
-                pending = self._ahead.get(signature(dynamic, static))
-                if pending is not None:
-                    return pending.result()(*dynamic)
+        dynamic, static = self._split(args)
+        if _traced(dynamic):
+            return self.jitted(*args)
+        key = signature(dynamic, static)
+        pending = self._ahead.get(key)
+        stored = self._stored_program(dynamic, static, key)
+        if stored is not None:
+            return stored.run(stored.call if pending is None else pending.result(), dynamic)
+        if pending is not None:
+            return pending.result()(*dynamic)
         return self.jitted(*args)
+
+
+class ProgramCache(dict):
+    """Compiled stages by name, shared by everything of one scene structure (``compile.Compiled``),
+    with the structure's ``identity``: ``build_once`` names the Programs built into it."""
+
+    def __init__(self, identity: str | None = None):
+        super().__init__()
+        self.identity = identity
+
+
+def build_once(cache: dict, key, build):
+    """``cache[key]``, built once by ``build()``. A ``Program`` built into a ``ProgramCache``
+    without an identity is named by the cache's identity and ``key``, so that its trace is kept
+    across processes (``physdsl.traces``)."""
+    if key not in cache:
+        made = build()
+        identity = getattr(cache, "identity", None)
+        if isinstance(made, Program) and made.identity is None and identity is not None \
+                and _plain(key):
+            made.identity = f"{identity}/{key!r}"
+        cache[key] = made
+    return cache[key]
+
+
+def _plain(key) -> bool:
+    """Whether ``repr(key)`` is the same in every process (strings, numbers, tuples of them)."""
+    if isinstance(key, tuple):
+        return all(_plain(k) for k in key)
+    return key is None or isinstance(key, (str, int, float, bool))

@@ -25,6 +25,7 @@ import numpy as np
 import numpyro
 import numpyro.distributions as dist
 
+from .ahead import ProgramCache, build_once
 from .errors import ModelError, PhysTypeError
 from .expr import evaluate, references
 from .observe import sensor, trajectory
@@ -162,15 +163,20 @@ class Compiled:
     compiled functions.
 
     ``cache`` maps a name (e.g. a backend's transition) to a jitted function whose arguments
-    include the data, so it serves every Model of the structure and of the same ``ruled_out``.
+    include the data, so it serves every Model of the structure and of the same ``ruled_out``;
+    its programs, and the simulators' rollouts, are named by ``key`` and ``ruled_out`` so that
+    later processes load their traces (``physdsl.traces``).
     """
 
-    def __init__(self, scene: Scene, ruled_out: tuple[int, ...] = (), simulator=None):
+    def __init__(self, scene: Scene, key: str, ruled_out: tuple[int, ...] = (), simulator=None):
         self.simulator = build_simulator(scene) if simulator is None else simulator
+        self.simulator.identify(key)
         self.ruled_out = ruled_out
+        identity = key if not ruled_out else f"{key}:without{ruled_out}"
         self.likelihood_simulator = self.simulator if not ruled_out else build_simulator(
             without_pairs(scene, self.simulator.model, ruled_out))
-        self.cache: dict = {}
+        self.likelihood_simulator.identify(identity)
+        self.cache = ProgramCache(identity)
 
 
 # structure key -> Compiled, alive while some Model holds it
@@ -197,7 +203,7 @@ class Model:
         key = structure_key(scene)
         compiled = _COMPILED.get(key)
         if compiled is None:
-            compiled = _COMPILED[key] = Compiled(scene)
+            compiled = _COMPILED[key] = Compiled(scene, key)
         self.simulator = compiled.simulator
         # the contact pairs the recording rules out: the likelihood simulates without them
         ruled_out = () if every_contact else self._ruled_out()
@@ -205,7 +211,7 @@ class Model:
             key_fit = f"{key}:without{ruled_out}"
             fit = _COMPILED.get(key_fit)
             if fit is None:
-                fit = _COMPILED[key_fit] = Compiled(scene, ruled_out, compiled.simulator)
+                fit = _COMPILED[key_fit] = Compiled(scene, key, ruled_out, compiled.simulator)
             compiled = fit
         self.compiled = compiled
         self.ruled_out = compiled.ruled_out
@@ -407,10 +413,7 @@ class Model:
         Whatever ``build`` returns is shared by every Model of this structure, so it must take
         the data as an argument rather than read this Model's.
         """
-        cache = self.compiled.cache
-        if key not in cache:
-            cache[key] = build()
-        return cache[key]
+        return build_once(self.compiled.cache, key, build)
 
 
 def _interp(d) -> trajectory.Interpolation:

@@ -37,7 +37,10 @@ class Registry(Mapping[str, T], Generic[T]):
     """Entries by name, filled by ``add`` (from decorators) and by the entry points of
     ``group``, which are loaded once, on the first look-up."""
 
+    instances: list["Registry"] = []  # every registry made (``traces`` hashes their plug-ins)
+
     def __init__(self, group: str, what: str, builtins: Mapping[str, str] | None = None):
+        Registry.instances.append(self)
         self.group = group
         self.what = what  # "effect", "inference backend", ... (for messages)
         self.builtins = dict(builtins or {})  # name -> module that registers it when imported

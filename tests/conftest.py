@@ -16,6 +16,10 @@ import pytest
 if os.environ.get("PHYSDSL_CACHE_DIR", "").lower() != "off":
     os.environ["PHYSDSL_CACHE_DIR"] = tempfile.mkdtemp(prefix="physdsl-tests-cache-")
     atexit.register(shutil.rmtree, os.environ["PHYSDSL_CACHE_DIR"], ignore_errors=True)
+# Traced programs are not kept across tests (physdsl/traces.py): tests patch module constants
+# that decide what is traced (``tree.RECURSIVE_MAX``), which a stored program's key cannot see.
+# The tests of that cache turn it on for themselves (tests/test_traces.py, tests/infer/test_cache.py).
+os.environ.setdefault("PHYSDSL_TRACE_CACHE", "off")
 
 import physdsl  # noqa: E402
 

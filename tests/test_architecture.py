@@ -25,7 +25,8 @@ FLOORS = (
     ("compile", "mjcf", "pooled"),
     ("syntax", "physics", "observe", "render"),
     ("scene", "goal"),
-    ("errors", "expr", "io", "media", "cache", "xla_flags", "ahead", "registry", "version"),
+    ("errors", "expr", "io", "media", "cache", "xla_flags", "ahead", "traces", "registry",
+     "version"),
 )
 
 # Sibling packages on one floor that must not know each other.

@@ -18,6 +18,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..ahead import Program, build_once
 from ..errors import UsageError
 from ..registry import Registry
 from ..physics.forward import FORWARD_MODE_MAX, inline_calls, jacobian, prune
@@ -117,9 +118,7 @@ def get_backend(name: str) -> Backend:
 
 def cached(problem: Problem, key, build: Callable):
     """``problem.cache[key]``, built once: compiled stages are shared by runs on one Problem."""
-    if key not in problem.cache:
-        problem.cache[key] = build()
-    return problem.cache[key]
+    return build_once(problem.cache, key, build)
 
 
 def value_and_grad_fn(problem: Problem):
@@ -128,7 +127,7 @@ def value_and_grad_fn(problem: Problem):
     if problem.gauss_newton is not None:
         parts = _gauss_newton_parts(problem)
         return lambda x: parts(x)[:2]
-    vg = cached(problem, "vg", lambda: jax.jit(jax.value_and_grad(problem.logdensity)))
+    vg = cached(problem, "vg", lambda: Program(jax.value_and_grad(problem.logdensity)))
     data = problem.data
     return lambda x: vg(x, data)
 
@@ -141,7 +140,7 @@ def value_fn(problem: Problem):
     if problem.draw is not None:
         data = problem.data
         return lambda x: problem.draw(x, data)[2]
-    f = cached(problem, "value", lambda: jax.jit(problem.logdensity))
+    f = cached(problem, "value", lambda: Program(problem.logdensity))
     data = problem.data
     return lambda x: f(x, data)
 
@@ -154,7 +153,7 @@ def gauss_newton_fn(problem: Problem):
     if problem.gauss_newton is None:
         return None
     parts = _gauss_newton_parts(problem)
-    prior = cached(problem, "prior-hessian", lambda: jax.jit(problem.prior_hessian))
+    prior = cached(problem, "prior-hessian", lambda: Program(problem.prior_hessian))
 
     def gn(x):
         v, g, JJ = parts(x)

@@ -20,6 +20,7 @@ import numpy as np
 from numpyro.infer.util import constrain_fn, potential_energy
 from scipy.optimize import minimize
 
+from ..ahead import Program
 from ..expr import evaluate, references
 from ..observe import trajectory
 from ..physics.simulator import observe
@@ -182,7 +183,7 @@ def _objective(problem, names: tuple[str, ...], estimates: list[Estimate]):
     # prior draws thrown as the data say (``multistart``) share it (each compiled its own)
     key = ("data-start-misfit", names, tuple((e.quantity, e.target, e.recording,
                                               e.slope is None) for e in estimates))
-    jitted = cached(problem, key, lambda: jax.jit(jax.value_and_grad(
+    jitted = cached(problem, key, lambda: Program(jax.value_and_grad(
         _misfit(model, sim, estimates, unravel))))
     return (lambda x: jitted(x, numbers)), mask
 

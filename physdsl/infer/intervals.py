@@ -47,6 +47,7 @@ import numpy as np
 from numpyro.infer.util import constrain_fn
 from scipy.stats import chi2
 
+from ..ahead import Program
 from ..compile import PRED_PREFIX
 from ..expr import references
 from . import posterior_data
@@ -410,7 +411,7 @@ def _residual_draws(model, problem, constrained) -> dict[str, np.ndarray]:
         return {o.obs.name: model._residual(o.obs, c[PRED_PREFIX + o.obs.name], data[o.obs.name])
                 / model.noise_scale(o.obs, values) for o in model.observed}
 
-    fn = cached(problem, "intervals-residuals", lambda: jax.jit(jax.vmap(one, in_axes=(0, None))))
+    fn = cached(problem, "intervals-residuals", lambda: Program(jax.vmap(one, in_axes=(0, None))))
     sites = {k: v for k, v in constrained.items()
              if k in names or k.startswith(PRED_PREFIX)}
     return {k: np.asarray(v) for k, v in fn(sites, problem.data).items()}

@@ -21,6 +21,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..ahead import Program
 from ..compile import PRED_PREFIX
 from .left_out import REACHED_SITE
 from .problem import drawn
@@ -135,7 +136,7 @@ def _values(model, sites: list) -> dict:
 def _read(model, problem, values: dict, preds: dict) -> tuple[dict, dict]:
     """(pointwise log-likelihood by observable, noise scales by observable (n, K)) of stacked
     values and predictions: one compiled program, ``CHUNK`` draws a call (the last padded)."""
-    fn = model.cached(("local-read", CHUNK), lambda: jax.jit(jax.vmap(
+    fn = model.cached(("local-read", CHUNK), lambda: Program(jax.vmap(
         lambda v, p, data: (model.pointwise_log_likelihood(v, p, data),
                             {o.obs.name: model.noise_scale(o.obs, v) for o in model.observed}),
         in_axes=(0, 0, None))))

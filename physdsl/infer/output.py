@@ -18,6 +18,7 @@ import numpy as np
 import numpyro
 
 from .. import io, xla_flags
+from ..ahead import Program
 from ..compile import OBS_PREFIX, PRED_PREFIX
 from ..errors import UsageError
 from ..pooled import component_labels, experiment_dims
@@ -168,7 +169,7 @@ def _vmapped_pass(model, problem, flat: np.ndarray, on_chunk=None) -> tuple[dict
         return c, model.pointwise_log_likelihood(values, preds, data)
 
     fn = cached(problem, ("posterior-pass", PASS_CHUNK),
-                lambda: jax.jit(jax.vmap(one, in_axes=(0, None))))
+                lambda: Program(jax.vmap(one, in_axes=(0, None))))
     def call(i):
         x = flat[i:i + PASS_CHUNK]
         m = x.shape[0]
@@ -215,7 +216,7 @@ def pointwise_log_likelihood(model, values: dict) -> dict[str, np.ndarray]:
     def build():
         def one(vals, data):
             return model.pointwise_log_likelihood(vals, model.predict(vals, data=data), data)
-        return jax.jit(jax.vmap(one, in_axes=(0, None)))
+        return Program(jax.vmap(one, in_axes=(0, None)))
 
     fn = model.cached("pointwise-log-likelihood", build)
     return {k: np.asarray(v) for k, v in fn(values, model.data).items()}

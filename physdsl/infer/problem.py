@@ -104,9 +104,9 @@ def draw_function(model, unravel, neg_log_prior):
         return sites, ll, jnp.where(jnp.isfinite(lp), lp, -jnp.inf)
 
     # in the structure's cache by name, like every compiled stage (shared by other data)
-    constrain = model.cached("draw-constrain", lambda: jax.jit(
+    constrain = model.cached("draw-constrain", lambda: Program(
         lambda x: constrain_fn(model.prior_values, (), {}, unravel(x))))
-    read = model.cached("draw-read", lambda: jax.jit(read_off))
+    read = model.cached("draw-read", lambda: Program(read_off))
 
     def draw(x, data):
         values = constrain(x)
@@ -181,7 +181,7 @@ def prior_draws_unconstrained(problem: Problem, key, n: int) -> np.ndarray:
             values = model.prior_values()
         return ravel_pytree(unconstrain_fn(model.prior_values, (), {}, values))[0]
 
-    fn = cached(problem, ("prior-draws", n), lambda: jax.jit(jax.vmap(one)))
+    fn = cached(problem, ("prior-draws", n), lambda: Program(jax.vmap(one)))
     return np.asarray(fn(jax.random.split(key, n)))
 
 

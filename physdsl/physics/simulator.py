@@ -83,6 +83,11 @@ class Simulator:
         self.trace_count = 0
         self._jit = Program(self._simulate, static_argnums=(1,))
 
+    def identify(self, structure: str) -> None:
+        """Name the compiled rollout by ``structure`` (a hash of this Simulator's scene and of
+        its contact pairs) so that later processes load its trace (``physdsl.traces``)."""
+        self._jit.identity = f"{structure}/simulate"
+
     def params(self, values) -> dict:
         """The numeric params pytree for ``values`` (masses, inertia, poses, effects, q0, v0)."""
         return evaluate_params(self.scene, self.model, values)

@@ -1,8 +1,8 @@
 """The persistent compilation cache (physdsl/cache.py), across separate processes.
 
 A scene is compiled and rolled out in fresh Python processes sharing one cache folder: the
-second process of the same scene adds no entry (every program came from the folder) and
-gives the same numbers; other measurements of the same shape add none either (data are
+second process of the same scene adds no entry (every program came from the folder, its trace
+too: physdsl/traces.py) and gives the same numbers; other measurements of the same shape add none either (data are
 arguments, not constants); an added effect adds entries and gives its own, correct numbers
 (no stale hit). Nothing here is timed.
 """
@@ -17,6 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from .conftest import write_trajectory_csv
+
+TRACES = "PHYSDSL_TRACE_CACHE"  # on in these processes
 
 BALLISTIC = """\
 scene toss {
@@ -60,7 +62,7 @@ def _scene(folder: Path, effect: str = "", seed: int = 0) -> Path:
 
 
 def _rollout(scene: Path, cache: Path | str | None, **more_env: str) -> np.ndarray:
-    env = {k: v for k, v in os.environ.items() if k != "PHYSDSL_CACHE_DIR"}
+    env = {k: v for k, v in os.environ.items() if k not in ("PHYSDSL_CACHE_DIR", TRACES)}
     env.update(more_env, **({} if cache is None else {"PHYSDSL_CACHE_DIR": str(cache)}))
     done = subprocess.run([sys.executable, "-c", ROLLOUT, str(scene), json.dumps(V0.tolist())],
                           env=env, capture_output=True, text=True, timeout=300, check=False)
@@ -70,6 +72,11 @@ def _rollout(scene: Path, cache: Path | str | None, **more_env: str) -> np.ndarr
 
 def _entries(cache: Path) -> set[str]:
     return {p.name for p in cache.iterdir() if p.name.endswith("-cache")}
+
+
+def _traces(cache: Path) -> set[str]:
+    """The traced programs kept (the suite runs without them: tests/conftest.py)."""
+    return {p.name for p in (cache / "traces").glob("*.trace")}
 
 
 def _ballistic(t):
@@ -89,25 +96,32 @@ def _linear_drag(t):
 def test_second_process_reuses_cache_and_other_data_hit_it(tmp_path):
     cache = tmp_path / "cache"
     first = _rollout(_scene(tmp_path / "a"), cache)
-    after_first = _entries(cache)
+    after_first, traced = _entries(cache), _traces(cache)
     assert after_first, "the first process wrote no compiled program"
+    assert traced, "the first process kept no traced program"
     np.testing.assert_allclose(first, _ballistic(TIMES), atol=1e-9)
 
     second = _rollout(_scene(tmp_path / "a"), cache)
     assert _entries(cache) == after_first  # every program came from the folder
+    assert _traces(cache) == traced
     np.testing.assert_array_equal(second, first)
 
     other_data = _rollout(_scene(tmp_path / "b", seed=1), cache)
     assert _entries(cache) == after_first  # the measurements are not constants of a program
+    assert _traces(cache) == traced
     np.testing.assert_array_equal(other_data, first)
+
+    untraced = _rollout(_scene(tmp_path / "a"), cache, **{TRACES: "off"})
+    np.testing.assert_array_equal(untraced, first)  # the same numbers as jit's own trace
 
 
 def test_added_effect_is_a_new_entry_not_a_stale_hit(tmp_path):
     cache = tmp_path / "cache"
     plain = _rollout(_scene(tmp_path / "plain"), cache)
-    before = _entries(cache)
+    before, traced = _entries(cache), _traces(cache)
     drag = _rollout(_scene(tmp_path / "drag", effect=DRAG), cache)
     assert _entries(cache) - before, "the scene with drag found all its programs cached"
+    assert _traces(cache) - traced, "the scene with drag found its trace kept"
     np.testing.assert_allclose(plain, _ballistic(TIMES), atol=1e-9)
     np.testing.assert_allclose(drag, _linear_drag(TIMES), atol=1e-8)
     assert np.max(np.abs(drag - plain)) > 0.05  # 0.3 kg/s on 200 g for 0.5 s: centimetres
