@@ -36,7 +36,7 @@ def _run(scene: Path, out: Path, cache: Path, backend: str, traces: bool = True
     t0 = time.perf_counter()
     done = subprocess.run([sys.executable, "-c", CLI, "--cache-dir", str(cache), "infer",
                            str(scene), "--backend", backend, "-o", str(out)],
-                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env)
     wall = time.perf_counter() - t0
     if done.returncode != 0:
         sys.exit(f"physdsl infer failed ({done.returncode}):\n{done.stderr[-3000:]}")
