@@ -140,31 +140,43 @@ def _is_call(eqn, rollouts: bool = False) -> bool:
 def jacobian(closed, leaves: list, cols: list[int]):
     """``closed`` evaluated at ``leaves``, and the tangent of each output (P, *shape) for one
     unit tangent per scalar of the leaves in ``cols`` (None: the output does not depend on them)."""
-    jaxpr = closed.jaxpr
     P = sum(int(np.size(leaves[i])) for i in cols)
+    basis = np.eye(P)  # a constant, not ops to trace
+    seeds, off = [None] * len(leaves), 0
+    for i in cols:
+        n = int(np.size(leaves[i]))
+        seeds[i] = basis[:, off:off + n].reshape((P,) + jnp.shape(leaves[i])).astype(
+            jnp.result_type(leaves[i]))
+        off += n
+    return _propagate(closed, leaves, seeds, P, _columns(closed.jaxpr, leaves, cols))
+
+
+def _propagate(closed, leaves: list, seeds: list, P: int, reach: dict):
+    """``closed`` evaluated at ``leaves`` with the tangents ``seeds`` ((P, *shape) or None per
+    leaf) carried through: each stretch of equations between loops by one vmapped jvp, each loop
+    by a new loop carrying the tangents (``_scan_columns``, ``_while``). ``reach``: the tangent
+    columns that may reach each variable (``_columns``)."""
+    jaxpr = closed.jaxpr
     env = dict(zip(jaxpr.constvars, closed.consts))
     tenv: dict = {}
-    basis = np.eye(P)  # a constant, not ops to trace
-    off = 0
-    for i, (v, x) in enumerate(zip(jaxpr.invars, leaves)):
+    for v, x, t in zip(jaxpr.invars, leaves, seeds):
         env[v] = x
-        if i in cols:
-            n = int(np.size(x))
-            tenv[v] = basis[:, off:off + n].reshape((P,) + jnp.shape(x)).astype(jnp.result_type(x))
-            off += n
+        if t is not None:
+            tenv[v] = t
     needed = _needed_after(jaxpr)
-    reach = _columns(jaxpr, leaves, cols)
     stretch: list = []
     for k, eqn in enumerate(jaxpr.eqns):
-        if eqn.primitive.name != "scan":
+        if eqn.primitive.name not in ("scan", "while"):
             stretch.append(eqn)
             continue
         _stretch(stretch, env, tenv, needed[k - 1] if k else set())
         stretch = []
-        if any(v in tenv for v in eqn.invars if isinstance(v, core.Var)):
+        if not any(v in tenv for v in eqn.invars if isinstance(v, core.Var)):
+            _evaluate([eqn], env, needed[k])  # no tangent reaches it
+        elif eqn.primitive.name == "scan":
             _scan_columns(eqn, env, tenv, P, sorted(_coarse(reach, eqn.invars)))
-        else:  # no tangent reaches it
-            _evaluate([eqn], env, needed[k])
+        else:
+            _while(eqn, env, tenv, P)
     _stretch(stretch, env, tenv, needed[-1] if jaxpr.eqns else set())
     read = lambda v: v.val if isinstance(v, core.Literal) else env[v]  # noqa: E731
     return ([read(v) for v in jaxpr.outvars],
@@ -183,6 +195,11 @@ def _columns(jaxpr, leaves, cols) -> dict:
             reach[v] = (tuple(frozenset([off + k]) for k in range(n)) if np.ndim(x) <= 1
                         else frozenset(range(off, off + n)))
             off += n
+    return _spread(jaxpr, reach)
+
+
+def _spread(jaxpr, reach: dict) -> dict:
+    """``reach`` (columns per input variable) carried through ``jaxpr``'s equations."""
     for eqn in jaxpr.eqns:
         ins = [reach.get(v) if isinstance(v, core.Var) else None for v in eqn.invars]
         if all(r is None for r in ins):
@@ -394,6 +411,48 @@ def _scan(eqn, env, tenv, P) -> None:
         env[v] = o
         if d is not None and _is_float(o):
             tenv[v] = d
+
+
+def _while(eqn, env, tenv, P) -> None:
+    """A while loop with its tangents: a new loop carrying the P tangents of every float carry a
+    tangent reaches, whose body propagates them through the old body (``_propagate``: its own
+    loops carried as here). The contact rollout under ``integrate.either`` is such a loop: JAX's
+    jvp and vmap of it would trace its body, and the rollout's step inside, several times over
+    to find the carries with tangents and those batched."""
+    p = eqn.params
+    cn, bn = p["cond_nconsts"], p["body_nconsts"]
+    read = lambda v: v.val if isinstance(v, core.Literal) else env[v]  # noqa: E731
+    ins = [read(v) for v in eqn.invars]
+    tans = [None if isinstance(v, core.Literal) else tenv.get(v) for v in eqn.invars]
+    cconsts, bconsts, init = ins[:cn], ins[cn:cn + bn], ins[cn + bn:]
+    nk = len(init)
+    body = inline_calls(p["body_jaxpr"])
+    fk = _tangent_carries(body.jaxpr, bn, nk, [k for k in range(bn) if tans[cn + k] is not None],
+                          [], [k for k in range(nk) if tans[cn + bn + k] is not None])
+    fk = [k for k in fk if _is_float(init[k])]
+    dinit = [tans[cn + bn + k] if tans[cn + bn + k] is not None
+             else jnp.zeros((P,) + jnp.shape(init[k]), jnp.result_type(init[k])) for k in fk]
+    cond = core.jaxpr_as_fun(p["cond_jaxpr"])
+    every = frozenset(range(P))
+
+    def step(carry):
+        c, dk = carry
+        seeds = list(tans[cn:cn + bn]) + [None] * nk
+        for k, d in zip(fk, dk):
+            seeds[bn + k] = d
+        reach = {v: every for v, t in zip(body.jaxpr.invars, seeds) if t is not None}
+        outs, douts = _propagate(body, list(bconsts) + list(c), seeds, P,
+                                 _spread(body.jaxpr, reach))
+        return outs, [douts[k] if douts[k] is not None else jnp.zeros_like(d)
+                      for k, d in zip(fk, dk)]
+
+    final, dfinal = jax.lax.while_loop(lambda carry: cond(*cconsts, *carry[0])[0], step,
+                                       (init, dinit))
+    for k, (v, o) in enumerate(zip(eqn.outvars, final)):
+        if not isinstance(v, core.DropVar):
+            env[v] = o
+            if k in fk:
+                tenv[v] = dfinal[fk.index(k)]
 
 
 def _is_float(x) -> bool:

@@ -138,3 +138,40 @@ def test_inline_calls_with_rollouts_puts_the_forward_mode_loop_in_the_callers_ja
     (v,), (g,) = jacobian(prune(flat)[0], [x], [0])
     np.testing.assert_allclose(v, f(x), rtol=1e-14)
     np.testing.assert_allclose(g, jax.jacfwd(lambda x: f(x))(x), rtol=1e-12)
+
+
+def test_jacobian_through_a_loop_of_at_most_one_trip_equals_jax_in_both_branches(monkeypatch):
+    """The contact rollout under ``integrate.either`` (forward only: a while loop of at most one
+    trip around a scan) is carried with its tangents (``forward._while``), its scan inside by
+    ``forward._scan`` as a top-level one (not by JAX's jvp and vmap of the loop, which trace the
+    step several times over): the Jacobian equals JAX's where the loop runs and where it does
+    not, and the new loop carries the tangent of the float carry alone (not the flag's)."""
+    from physdsl.physics import forward
+    from physdsl.physics.forward import jacobian, prune
+    from physdsl.physics.integrate import either
+
+    scans = []
+    plain_scan = forward._scan
+    monkeypatch.setattr(forward, "_scan", lambda *a: scans.append(1) or plain_scan(*a))
+
+    def contact(x):
+        return jax.lax.scan(lambda s, _: (s * x[1] + jnp.sin(s) * x[2], None), x[:2], None,
+                            length=6)[0]
+
+    def f(x):
+        out = either(x[0] > 0.5, contact, lambda x: x[:2] * x[2], x, forward_only=True)
+        return jnp.sum(out ** 2) + x[1]
+
+    for x0 in (0.9, 0.1):  # the loop runs; it does not
+        x = jnp.array([x0, 0.8, -0.3])
+        closed = jax.make_jaxpr(f)(x)
+        assert "while" in {e.primitive.name for e in closed.jaxpr.eqns}
+        (v,), (g,) = jacobian(prune(closed)[0], [x], [0])
+        np.testing.assert_allclose(v, f(x), rtol=1e-15)
+        np.testing.assert_allclose(g, jax.jacfwd(f)(x), rtol=1e-12)
+    assert len(scans) == 2  # the scan inside the loop, once per x
+    loops = [e for e in jax.make_jaxpr(lambda x: jacobian(prune(closed)[0], [x], [0]))(x).eqns
+             if e.primitive.name == "while"]
+    assert len(loops) == 1
+    carries = [v.aval.shape for v in loops[0].outvars]
+    assert carries == [(), (2,), (3, 2)]  # flag, state, the state's 3 tangent columns
