@@ -191,6 +191,8 @@ class Program:
         return self.jitted._cache_size() + loaded + len(self._ahead)
 
     def __call__(self, *args):
+        if self.identity is None and not self._ahead:
+            return self.jitted(*args)  # (no signature to compute: jit's own fast path)
         dynamic, static = self._split(args)
         if _traced(dynamic):
             return self.jitted(*args)

@@ -68,26 +68,33 @@ def _source_hash(files) -> str:
     return h.hexdigest()
 
 
-def _plugin_files() -> list[str]:
-    """Source files of the modules outside physdsl that registered an entry (plug-ins)."""
+def _plugin_files() -> list[str] | None:
+    """Source files of the modules outside physdsl that registered an entry (plug-ins); None
+    where one has no file to read (its code could change unseen)."""
     files = []
     for reg in Registry.instances:
         for origin in set(reg._origin.values()):
-            mod = sys.modules.get(origin)
-            path = getattr(mod, "__file__", None)
-            if path and not origin.startswith("physdsl"):
-                files.append(path)
+            if origin.startswith("physdsl"):
+                continue
+            path = getattr(sys.modules.get(origin), "__file__", None)
+            if not path:
+                return None
+            files.append(path)
     return files
 
 
-def fingerprint() -> str:
-    """What every stored program depends on besides its own key (see the module docstring)."""
+def fingerprint() -> str | None:
+    """What every stored program depends on besides its own key (see the module docstring);
+    None where that cannot be known (a plug-in without a source file)."""
+    plugins = _plugin_files()
+    if plugins is None:
+        return None
     env = sorted((k, v) for k, v in os.environ.items()
                  if k.startswith(("PHYSDSL_", "JAX_", "XLA_")) and k not in _UNTRACED_ENV)
     h = hashlib.sha256(repr((FORMAT, jax.__version__, jaxlib.__version__,
                              bool(jax.config.jax_enable_x64), env)).encode())
     h.update(_package_hash().encode())
-    h.update(_source_hash(_plugin_files()).encode())
+    h.update(_source_hash(plugins).encode())
     return h.hexdigest()
 
 
@@ -103,18 +110,19 @@ class Stored(NamedTuple):
     call: object
     out_tree: object
 
-    def __call__(self, dynamic):
-        return self.run(self.call, dynamic)
-
     def run(self, executable, dynamic):
         """The output tree of ``executable`` (this program's, or its compiled form) at ``dynamic``."""
         out = executable(*jax.tree_util.tree_leaves(dynamic))
         return jax.tree_util.tree_unflatten(self.out_tree, out)
 
 
-def entry_key(identity: str, signature: tuple) -> str:
-    """The file name (a hash) of the program ``identity`` for arguments of ``signature``."""
-    h = hashlib.sha256(fingerprint().encode())
+def entry_key(identity: str, signature: tuple) -> str | None:
+    """The file name (a hash) of the program ``identity`` for arguments of ``signature``; None
+    where the fingerprint cannot be known."""
+    common = fingerprint()
+    if common is None:
+        return None
+    h = hashlib.sha256(common.encode())
     h.update(repr((identity, str(signature[0]), signature[1], repr(signature[2]))).encode())
     return h.hexdigest()
 
@@ -122,10 +130,10 @@ def entry_key(identity: str, signature: tuple) -> str:
 def load_or_export(identity: str, fn, dynamic, signature: tuple) -> Optional[Stored]:
     """``fn(*dynamic)`` as a stored program: read from the trace folder, or traced, exported and
     written there; None where tracing cannot be skipped (the folder off, no export)."""
-    where = folder()
-    if where is None:
+    where, key = folder(), entry_key(identity, signature)
+    if where is None or key is None:
         return None
-    path = where / f"{entry_key(identity, signature)}.trace"
+    path = where / f"{key}.trace"
     if path.exists():
         try:
             entry = pickle.loads(path.read_bytes())

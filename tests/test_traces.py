@@ -144,3 +144,15 @@ def test_a_structure_cache_names_its_programs_by_structure_and_key():
     odd = build_once(cache, ("x", object()), lambda: Program(jnp.sin))  # no stable name
     assert odd.identity is None
     assert build_once({}, "plain dict", lambda: Program(jnp.sin)).identity is None
+
+
+def test_a_plugin_without_a_source_file_keeps_nothing(folder, monkeypatch):
+    """A registry entry from a module with no file (its code could change unseen by the key):
+    programs are traced as jit does, nothing is written."""
+    from physdsl.registry import Registry
+
+    monkeypatch.setitem(Registry.instances[0]._origin, "ghost", "a_module_never_imported")
+    x, data, scale = _args()
+    out = Program(_fn, static_argnums=(2,), identity="test/fn")(x, data, scale)
+    assert not folder.exists()
+    np.testing.assert_allclose(out["sum"], jnp.sum(jnp.sin(x) * data["w"] + scale))
