@@ -19,6 +19,7 @@ import numpy as np
 from .conftest import write_trajectory_csv
 
 TRACES = "PHYSDSL_TRACE_CACHE"  # on in these processes
+CLI = "import sys; from physdsl.cli import main; sys.exit(main())"
 
 BALLISTIC = """\
 scene toss {
@@ -113,6 +114,27 @@ def test_second_process_reuses_cache_and_other_data_hit_it(tmp_path):
 
     untraced = _rollout(_scene(tmp_path / "a"), cache, **{TRACES: "off"})
     np.testing.assert_array_equal(untraced, first)  # the same numbers as jit's own trace
+
+
+def _infer(scene: Path, cache: Path, out: Path) -> str:
+    """``physdsl infer --backend map`` in a fresh process (traces kept); its summary table."""
+    env = {k: v for k, v in os.environ.items() if k != TRACES}
+    done = subprocess.run([sys.executable, "-c", CLI, "--cache-dir", str(cache), "infer",
+                           str(scene), "--backend", "map", "-o", str(out)], env=env,
+                          capture_output=True, text=True, timeout=600, check=False)
+    assert done.returncode == 0, done.stderr
+    return (out / "summary.csv").read_text()
+
+
+def test_a_second_infer_traces_nothing_and_writes_the_same_summary(tmp_path):
+    """Every program of a whole ``infer`` (fit, Laplace, posterior pass, intervals) is named the
+    same in the next process: it loads them all, and its numbers are the first's."""
+    cache, scene = tmp_path / "cache", _scene(tmp_path / "a")
+    first = _infer(scene, cache, tmp_path / "out1")
+    traced = _traces(cache)
+    assert len(traced) >= 3  # the Gauss-Newton program, the rollout, the posterior pass, ...
+    assert _infer(scene, cache, tmp_path / "out2") == first
+    assert _traces(cache) == traced
 
 
 def test_added_effect_is_a_new_entry_not_a_stale_hit(tmp_path):
