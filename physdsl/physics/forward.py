@@ -5,9 +5,11 @@ carried alongside the state (one scan of state and tangents), which compiles and
 than reverse mode through a scan of many small steps when P is small; gradients then come by
 transposing that linear rule. ``f``'s Python is traced once, into a jaxpr pruned of what no output
 reads, and the Jacobian is read off that jaxpr directly: each stretch of equations between loops
-by one vmapped jvp, each loop as a new scan whose body is the vmapped jvp of the old body with
+by one vmapped jvp, each scan as a new scan whose body is the vmapped jvp of the old body with
 every tangent an explicit carry (JAX's own jvp and vmap of a scan trace its body four or five
-times over, to find which carries have tangents and which are batched). Small jit calls (e.g.
+times over, to find which carries have tangents and which are batched), each while loop (the
+contact rollout under ``integrate.either``) as a new while loop whose body carries the tangents
+through the old body the same way, its scans included. Small jit calls (e.g.
 ``jnp.where``'s) are inlined first. A caller that differentiates a larger function the same way
 (the log density, ``infer.base``) says so explicitly: ``inline_calls(closed, rollouts=True)``
 replaces each forward-mode call in its jaxpr by the rollout's own equations, whose loops then
