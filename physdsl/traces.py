@@ -12,8 +12,10 @@ source of physdsl and of every plug-in module in its registries, the jax and jax
 the x64 flag and the ``PHYSDSL_*``, ``JAX_*`` and ``XLA_*`` environment (``xla_flags.in_effect``
 decides some traces). That is what a trace may depend on, as long as a program's name says
 what it computes (as in one process, where ``Model.cached`` shares programs by name); a
-module constant changed at run time (as tests patch them) is not seen: tests run without it. A program that cannot be exported (a host callback) runs as ``jax.jit``
-does. ``PHYSDSL_TRACE_CACHE=off`` (or the persistent cache off) turns this off.
+module constant changed at run time (as tests patch them) is not seen: tests run without it.
+A program that cannot be exported (a host callback) runs as ``jax.jit`` does; an entry that
+cannot be written is kept for this process alone. ``PHYSDSL_TRACE_CACHE=off`` (or the
+persistent cache off) turns this off.
 """
 from __future__ import annotations
 
@@ -37,7 +39,7 @@ ENV = "PHYSDSL_TRACE_CACHE"
 OFF = ("off", "0", "false", "no")
 FORMAT = 1  # of a stored entry (pickled dict): bump when its layout changes
 PACKAGE = Path(__file__).resolve().parent
-# what reads a trace cache folder: also counted by tests (a second process loads, never traces)
+# this process's programs loaded, exported and not exportable (tests read them)
 COUNTS = {"loaded": 0, "exported": 0, "not_exportable": 0}
 # environment variables that change nothing traced
 _UNTRACED_ENV = ("PHYSDSL_CACHE_DIR", "PHYSDSL_THREADS", "PHYSDSL_COMPILE_AHEAD",
@@ -111,7 +113,8 @@ class Stored(NamedTuple):
     out_tree: object
 
     def run(self, executable, dynamic):
-        """The output tree of ``executable`` (this program's, or its compiled form) at ``dynamic``."""
+        """The output tree of ``executable`` (this program's, or its compiled form) at
+        ``dynamic``."""
         out = executable(*jax.tree_util.tree_leaves(dynamic))
         return jax.tree_util.tree_unflatten(self.out_tree, out)
 
@@ -157,6 +160,9 @@ def load_or_export(identity: str, fn, dynamic, signature: tuple) -> Optional[Sto
         COUNTS["not_exportable"] += 1
         log.info("program %s not exported (%s)", identity, exc)
         return None
-    write_bytes(path, blob)
+    try:
+        write_bytes(path, blob)
+    except OSError as exc:  # a full or read-only folder: the next process traces it again
+        log.info("trace cache entry %s not written (%s)", path.name, exc)
     COUNTS["exported"] += 1
     return Stored(jax.jit(exported.call), out_tree[0])

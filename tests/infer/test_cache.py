@@ -2,9 +2,9 @@
 
 A scene is compiled and rolled out in fresh Python processes sharing one cache folder: the
 second process of the same scene adds no entry (every program came from the folder, its trace
-too: physdsl/traces.py) and gives the same numbers; other measurements of the same shape add none either (data are
-arguments, not constants); an added effect adds entries and gives its own, correct numbers
-(no stale hit). Nothing here is timed.
+too: physdsl/traces.py) and gives the same numbers; other measurements of the same shape add
+none either (data are arguments, not constants); an added effect adds entries and gives its
+own, correct numbers (no stale hit). Nothing here is timed.
 """
 from __future__ import annotations
 
