@@ -133,8 +133,9 @@ def entry_key(identity: str, signature: tuple) -> str | None:
 def load_or_export(identity: str, fn, dynamic, signature: tuple) -> Optional[Stored]:
     """``fn(*dynamic)`` as a stored program: read from the trace folder, or traced, exported and
     written there; None where tracing cannot be skipped (the folder off, no export)."""
-    where, key = folder(), entry_key(identity, signature)
-    if where is None or key is None:
+    where = folder()
+    key = None if where is None else entry_key(identity, signature)
+    if key is None:
         return None
     path = where / f"{key}.trace"
     if path.exists():
