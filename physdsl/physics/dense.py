@@ -52,24 +52,24 @@ def lu_factor(A):
     """(LU, perm): P A = L U by Gaussian elimination with partial pivoting, L unit lower
     (below the diagonal of LU) and U upper, ``perm`` the rows of A in P A's order. A loop
     over the n columns (one small body, so the Newton step that holds it compiles quickly)
-    for the contact solver's Newton matrices, which are not symmetric."""
+    for the contact solver's Newton matrices, which are not symmetric. Rows are not moved
+    while eliminating (a pivot row is only marked used; one gather orders them at the end):
+    a column costs a row read, a rank-1 update and a column write."""
     n = A.shape[0]
     rows = jnp.arange(n)
 
-    def column(k, lu_perm):
-        A, perm = lu_perm
-        p = jnp.argmax(jnp.where(rows >= k, jnp.abs(A[:, k]), -1.0))
-        at_k, at_p = rows == k, rows == p
-        A_k, A_p = A[k], A[p]
-        A = jnp.where(at_k[:, None], A_p, jnp.where(at_p[:, None], A_k, A))
-        perm = jnp.where(at_k, perm[p], jnp.where(at_p, perm[k], perm))
-        below = rows > k
-        pivot = A[k, k]
-        low = jnp.where(below, A[:, k] / jnp.where(pivot != 0, pivot, 1.0), 0.0)
-        A = A - low[:, None] * jnp.where(below, A[k], 0.0)[None, :]
-        return jnp.where(rows[None, :] == k, jnp.where(below, low, A[:, k])[:, None], A), perm
+    def column(k, state):
+        A, free, perm = state
+        col = A[:, k]
+        p = jnp.argmax(jnp.where(free, jnp.abs(col), -1.0))
+        free = free.at[p].set(False)
+        pivot = col[p]
+        low = jnp.where(free, col / jnp.where(pivot != 0, pivot, 1.0), 0.0)
+        A = A - low[:, None] * jnp.where(rows > k, A[p], 0.0)[None, :]
+        return A.at[:, k].set(jnp.where(free, low, col)), free, perm.at[k].set(p)
 
-    return jax.lax.fori_loop(0, n, column, (A, rows))
+    A, _, perm = jax.lax.fori_loop(0, n, column, (A, jnp.ones(n, bool), rows))
+    return A[perm], perm
 
 
 def lu_solve(lu, b):
