@@ -69,3 +69,29 @@ def test_gauss_newton_matrix_is_the_exact_curvature_where_predictions_are_linear
                    / (2 * h) for e in np.eye(3)], axis=1)
     np.testing.assert_allclose(H, -fd, rtol=1e-6)
     assert np.linalg.eigvalsh(H).min() > 0
+
+
+def _kinked(x):
+    """A log density whose Gauss-Newton model never comes true: each damped step gains about
+    1e-7 nats while the full step is predicted to gain 0.05 (the friction block's fit)."""
+    x = np.asarray(x, dtype=float)
+    return -1e-7 * float(np.sum(np.abs(x - 5.0))), 1e-1 * np.ones(1), 0.1 * np.eye(1)
+
+
+def test_a_search_whose_steps_gain_nothing_that_matters_stops_as_stalled():
+    """Five steps in a row each gaining under ``STALL_GAIN`` end the search (done), long before
+    its budget; a sixth gain at that scale would not change any figure derived from it."""
+    from physdsl.infer import levenberg_marquardt as lm
+
+    def gn(x):
+        calls.append(1)
+        v, _, H = _kinked(x)
+        return v, np.ones(1) * 0.1, H
+
+    calls: list = []
+    state = lm.init(gn, np.zeros(1))
+    while not state.done and state.steps < 300:
+        state = lm.step(gn, state, lambda x: _kinked(x)[0])
+    assert state.done and state.steps == lm.STALL
+    assert lm.newton_gain(state.H, state.grad) > 1e3 * lm.GAIN_TOL  # not a converged mode
+    assert len(calls) < 20
