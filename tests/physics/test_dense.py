@@ -65,3 +65,21 @@ def test_general_solve_equals_lapack_and_pivots(n):
         np.testing.assert_allclose(A @ x, rhs, rtol=0, atol=1e-11)
         np.testing.assert_allclose(x, np.linalg.solve(A, rhs), rtol=1e-9, atol=1e-12)
 
+
+
+@pytest.mark.parametrize("n", [3, 8, 24])
+def test_lu_factors_are_lapacks_partial_pivoting(n):
+    """``lu_factor``'s (LU, perm): A[perm] = L U with the pivot rows LAPACK's partial pivoting
+    chooses (the largest remaining entry of each column), on a matrix that needs an exchange
+    at nearly every column; the contact solver's Newton matrices are 24 x 24."""
+    import scipy.linalg
+
+    rng = np.random.default_rng(n)
+    A = rng.normal(size=(n, n))[rng.permutation(n)]
+    LU, perm = (np.asarray(a) for a in jax.jit(dense.lu_factor)(jnp.asarray(A)))
+    L, U = np.tril(LU, -1) + np.eye(n), np.triu(LU)
+    np.testing.assert_allclose(L @ U, A[perm], rtol=0, atol=1e-12)
+    P, L_ref, U_ref = scipy.linalg.lu(A)  # A = P L U
+    np.testing.assert_array_equal(perm, np.argmax(P, axis=0))
+    np.testing.assert_allclose(L, L_ref, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(U, U_ref, rtol=0, atol=1e-12)
