@@ -13,10 +13,12 @@ steps short for tens of iterations).
 Converged when the full Gauss-Newton step would gain less than ``GAIN_TOL`` (its predicted
 gain g^T H^-1 g / 2: the gradient measured in the metric of the information, which does not
 depend on the damping or on the unknowns' units), or when the point no longer moves (a step
-within rounding of x, or ``STALL`` steps in a row each gaining less than ``STALL_GAIN``: a kink
-or rounding noise, where the prediction never comes true; a block sliding on a ramp with
+within rounding of x, or ``STALL`` steps each gaining less than ``STALL_GAIN`` where the
+quadratic model failed, rho < ``STALL_RHO``, with no step gaining more in between: a kink or
+rounding noise, where the prediction never comes true; a block sliding on a ramp with
 friction predicted 0.03-0.05 nats a full step for hundreds of steps that gained 1e-7 to 1e-6
-each). A small gain of one damped step is not convergence.
+each). A small gain of one damped step is not convergence, nor are tiny gains that the model
+predicted (a search leaving a heavy damping behind: its steps grow threefold each).
 
 Trajectory fits are badly scaled (a start position seen to a millimetre beside a mass seen to
 tens of percent) and their log density bends at every contact; L-BFGS there rebuilds its
@@ -31,8 +33,9 @@ import jax.numpy as jnp
 import numpy as np
 
 GAIN_TOL = 1e-9  # log-density units (nats): a gain below this has no statistical meaning
-STALL = 5  # steps in a row gaining less than STALL_GAIN: the search has stalled (a kink)
+STALL = 5  # steps gaining less than STALL_GAIN, as the model did not predict: stalled (a kink)
 STALL_GAIN = 1e-6  # nats: five such steps move the log density by less than 5e-6 nats
+STALL_RHO = 0.5  # a step gaining less than this share of its predicted gain: the model failed
 LAM_MIN, LAM_MAX = 1e-12, 1e16  # damping bounds: below, a Gauss-Newton step; above, none
 
 
@@ -87,7 +90,8 @@ def step(gn, state: LMState, value=None) -> LMState:
         rho = (vn - v) / max(predicted, 1e-300) if np.isfinite(vn) else -np.inf
         if rho > 0:
             lam = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), LAM_MIN)
-            stalled = state.stalled + 1 if vn - v <= STALL_GAIN else 0
+            tiny = vn - v <= STALL_GAIN
+            stalled = state.stalled + (rho < STALL_RHO) if tiny else 0
             return LMState(x + d, vn, g_new, H_new, lam, stalled, state.steps + 1,
                            stalled >= STALL)
         lam, nu = lam * nu, nu * 2.0
