@@ -66,7 +66,6 @@ def test_general_solve_equals_lapack_and_pivots(n):
         np.testing.assert_allclose(x, np.linalg.solve(A, rhs), rtol=1e-9, atol=1e-12)
 
 
-
 @pytest.mark.parametrize("n", [3, 8, 24])
 def test_lu_factors_are_lapacks_partial_pivoting(n):
     """``lu_factor``'s (LU, perm): A[perm] = L U with the pivot rows LAPACK's partial pivoting
