@@ -180,8 +180,7 @@ def _propagate(closed, leaves: list, seeds: list, P: int, reach: dict):
         else:
             _while(eqn, env, tenv, P)
     _stretch(stretch, env, tenv, needed[-1] if jaxpr.eqns else set())
-    read = lambda v: v.val if isinstance(v, core.Literal) else env[v]  # noqa: E731
-    return ([read(v) for v in jaxpr.outvars],
+    return ([_value(env, v) for v in jaxpr.outvars],
             [None if isinstance(v, core.Literal) else tenv.get(v) for v in jaxpr.outvars])
 
 
@@ -367,9 +366,7 @@ def _scan(eqn, env, tenv, P) -> None:
     is the vmapped jvp of the old one."""
     p = eqn.params
     nc, nk = _scan_sizes(p)
-    read = lambda v: v.val if isinstance(v, core.Literal) else env[v]  # noqa: E731
-    ins = [read(v) for v in eqn.invars]
-    tans = [None if isinstance(v, core.Literal) else tenv.get(v) for v in eqn.invars]
+    ins, tans = _inputs(eqn, env, tenv)
     consts, init, xs = ins[:nc], ins[nc:nc + nk], ins[nc + nk:]
     dc = [k for k in range(nc) if tans[k] is not None]
     dx = [k for k in range(len(xs)) if tans[nc + nk + k] is not None]
@@ -423,9 +420,7 @@ def _while(eqn, env, tenv, P) -> None:
     to find the carries with tangents and those batched."""
     p = eqn.params
     cn, bn = p["cond_nconsts"], p["body_nconsts"]
-    read = lambda v: v.val if isinstance(v, core.Literal) else env[v]  # noqa: E731
-    ins = [read(v) for v in eqn.invars]
-    tans = [None if isinstance(v, core.Literal) else tenv.get(v) for v in eqn.invars]
+    ins, tans = _inputs(eqn, env, tenv)
     cconsts, bconsts, init = ins[:cn], ins[cn:cn + bn], ins[cn + bn:]
     nk = len(init)
     body = inline_calls(p["body_jaxpr"])
@@ -455,6 +450,17 @@ def _while(eqn, env, tenv, P) -> None:
             env[v] = o
             if k in fk:
                 tenv[v] = dfinal[fk.index(k)]
+
+
+def _value(env: dict, v):
+    """The value of atom ``v`` (a literal's own, a variable's from ``env``)."""
+    return v.val if isinstance(v, core.Literal) else env[v]
+
+
+def _inputs(eqn, env: dict, tenv: dict) -> tuple[list, list]:
+    """(values, tangents or None) of ``eqn``'s inputs."""
+    return ([_value(env, v) for v in eqn.invars],
+            [None if isinstance(v, core.Literal) else tenv.get(v) for v in eqn.invars])
 
 
 def _is_float(x) -> bool:
