@@ -2,9 +2,12 @@
 
 A pair is ruled out when the measurements keep its two bodies apart over the whole simulated
 horizon by more than the contact margin plus ``CLEARANCE_SIGMAS`` noise scales (and what the
-body may dip between two samples). Each side must be either a static body whose pose and shape
-are constants, or a free body whose position is measured (no sensor model, constant noise)
-from the first step to the last. This is a forecast: a fit run without the pairs is checked
+body may dip between two samples). Each side must be a static body whose pose and shape are
+constants, a free body whose position is measured (no sensor model, constant noise) from the
+first step to the last, or a body of a tree of hinges and sliders hung from the world whose
+every joint from the world down is measured so (its positions then follow from the measured
+angles by the model's own kinematics; a link of a chain of three or more has pairs with the
+links it is not jointed to). This is a forecast: a fit run without the pairs is checked
 afterwards against the exact rule of ``idle.clear`` on every draw (``Model.contact_reached``),
 and run again with every contact where a draw comes within reach.
 """
@@ -15,12 +18,16 @@ from typing import NamedTuple
 
 import numpy as np
 
+import jax
+import jax.numpy as jnp
+
 from ..expr import evaluate, references
 from ..scene import Scene
 from .contact import contact_margin
 from .idle import PRIMITIVES, bounding_radius
 from .inertia import contact_size
-from .params import shape_size
+from .kinematics import forward_kinematics
+from .params import evaluate_params, shape_size
 from .structure import PhysicsModel
 
 CLEARANCE_SIGMAS = 4.0  # noise scales of clearance beyond the contact margin
@@ -34,11 +41,12 @@ def ruled_out_pairs(scene: Scene, model: PhysicsModel, until: float | None = Non
     if not model.ncon or until is not None:
         return ()
     end = model.nsteps * model.dt
+    jointed = _jointed_sides(scene, model, end)
     out = []
     for k, p in enumerate(model.pairs):
         if p.kind_a not in PRIMITIVES or p.kind_b not in PRIMITIVES:
             continue
-        a, b = _side(scene, model, p.a, end), _side(scene, model, p.b, end)
+        a, b = (jointed.get(i) or _side(scene, model, i, end) for i in (p.a, p.b))
         if a is None or b is None or (a.track is None and b.track is None):
             continue
         if a.track is None or a.normal is not None:
@@ -88,11 +96,92 @@ def _side(scene: Scene, model: PhysicsModel, i: int, end: float):
                  slack=slack)
 
 
-def _measured_track(scene: Scene, body: str, dt: float, end: float):
-    """(times, positions (N, 3), noise scale) of ``body``'s measured position where it covers
-    the horizon from the first step to the last; else None."""
+def _jointed_sides(scene: Scene, model: PhysicsModel, end: float) -> dict:
+    """Body index -> its ``_Side``, for each body of a hinge and slider tree hung from the world
+    whose joints are all measured over the horizon at the same times, whose shape and every
+    pose, anchor and axis on its way from the world are free of unknowns: positions by the
+    model's kinematics at the measured coordinates; slack from each joint's noise scale times
+    its lever arm, and from the dip between samples (the larger of ``ACCEL_BOUND`` and the
+    measured positions' own second differences)."""
+    measured = {}  # body index -> (times, coordinate (N,), noise scale)
     for o in scene.observations:
-        if o.quantity != "position" or o.target != body or o.sensor is not None:
+        if o.quantity == "angle" and o.target in model.joint_names:
+            i = model.joint_names.index(o.target)
+            if model.joints[i].kind in ("hinge", "slider"):
+                track = _measured_track(scene, o.target, model.dt, end, quantity="angle")
+                if track is not None:
+                    measured[i] = (track[0], track[1][:, 0], track[2])
+    paths = {}  # body -> its measured joints from the world down (static bodies: none)
+    for i in model.order:
+        tj, parent = model.joints[i], model.joints[i].parent
+        if not _fixed_geometry(scene, model, i):
+            continue
+        if parent < 0 and tj.kind == "fixed":
+            paths[i] = ()
+        elif (parent < 0 or parent in paths) and (i in measured or tj.kind == "fixed"):
+            paths[i] = (paths[parent] if parent >= 0 else ()) + ((i,) if i in measured else ())
+    paths = {i: p for i, p in paths.items() if p}
+    times = [measured[j][0] for p in paths.values() for j in p]
+    if not paths or any(t.shape != times[0].shape or not np.allclose(t, times[0]) for t in times):
+        return {}
+    times = times[0]
+    q = np.zeros((len(times), model.nq))
+    for j in {j for p in paths.values() for j in p}:
+        q[:, model.joints[j].qadr] = measured[j][1]
+    for tj in model.joints:  # identity quaternions where a body off the paths has one
+        if tj.kind in ("ball", "free"):
+            q[:, tj.qadr + (3 if tj.kind == "free" else 0)] = 1.0
+    values = {u.name: np.ones(u.shape) for u in scene.unknowns}  # nothing on the paths reads them
+    prm = evaluate_params(scene, model, values)
+    zero_v = jnp.zeros(model.nv)
+    pos = np.asarray(jax.vmap(lambda qt: forward_kinematics(model, prm, qt, zero_v).pos)(
+        jnp.asarray(q)))
+    ref_pos, anchor = np.asarray(prm["ref_pos"]), np.asarray(prm["anchor"])
+    gaps = np.diff(times)
+    out = {}
+    for i, path in paths.items():
+        shape = scene.bodies[i].shape
+        if shape is None or shape.kind == "plane":
+            continue
+        track = pos[:, i]
+        error = 0.0  # position error per noise scale of the joints on the way
+        for j in path:
+            lever = 1.0
+            if model.joints[j].kind == "hinge":  # the anchor is fixed in body j's frame
+                lever = (np.linalg.norm(track - pos[:, j], axis=1).max()
+                         + np.linalg.norm(ref_pos[j] - anchor[j]))
+            error += measured[j][2] * lever
+        accel = ACCEL_BOUND
+        if len(times) > 2:
+            second = track[2:] - 2 * track[1:-1] + track[:-2]
+            accel = max(accel, float((np.linalg.norm(second, axis=1)
+                                      / (gaps[1:] * gaps[:-1])).max()))
+        csize = np.asarray(contact_size(shape.kind, shape_size(shape, {})), float)
+        out[i] = _Side(track=track, times=times, radius=float(bounding_radius(shape.kind, csize)),
+                       slack=CLEARANCE_SIGMAS * error + accel * float(gaps.max()) ** 2 / 8)
+    return out
+
+
+def _fixed_geometry(scene: Scene, model: PhysicsModel, i: int) -> bool:
+    """Whether body ``i``'s shape, pose and joint (anchor, axis, DH parameters) name no
+    unknown."""
+    body, tj = scene.bodies[i], model.joints[i]
+    exprs = [body.position, body.orientation]
+    if body.shape is not None:
+        exprs += list(body.shape.size.values())
+    if tj.scene_joint is not None:
+        joint = scene.joints[tj.scene_joint]
+        exprs += [joint.anchor, joint.axis]
+        if joint.dh is not None:
+            exprs += [joint.dh.a, joint.dh.alpha, joint.dh.d, joint.dh.theta]
+    return not _refs(exprs)
+
+
+def _measured_track(scene: Scene, target: str, dt: float, end: float, quantity="position"):
+    """(times, values (N, D), noise scale) of ``target``'s measured ``quantity`` where it
+    covers the horizon from the first step to the last; else None."""
+    for o in scene.observations:
+        if o.quantity != quantity or o.target != target or o.sensor is not None:
             continue
         if _refs([o.noise.scale]):
             continue

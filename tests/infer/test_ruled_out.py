@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -120,3 +121,55 @@ def test_a_fit_that_reaches_a_pair_left_out_runs_again_with_every_contact(tmp_pa
     direct = physdsl.infer(model.with_every_contact(), backend="map", progress=False)
     for k in TRUTH:
         np.testing.assert_array_equal(again.posterior[k].values, direct.posterior[k].values)
+
+
+CHAIN = Path(__file__).resolve().parents[2] / "examples" / "hidden-effect" / "damped_chain"
+
+
+def _with_angles(scene, angles: dict):
+    """``scene`` with each joint observation's values replaced by ``angles[joint]`` (N,)."""
+    return dataclasses.replace(scene, observations=tuple(
+        dataclasses.replace(o, values=np.asarray(angles[o.target], float)[:, None])
+        if o.target in angles else o for o in scene.observations))
+
+
+def test_a_chain_whose_measured_angles_keep_its_links_apart_leaves_their_pairs_out():
+    """MuJoCo's 4-link chain: its links never come near the links they are not jointed to, so
+    the three pairs leave the likelihood; draws of the fit stay clear of them (the exact rule);
+    with the data of a chain folded back on itself (hinge2 at 170 degrees) link1 and link3
+    stay paired."""
+    model = compile_phys(CHAIN / "naive.phys")
+    pm = model.simulator.model
+    assert [(p.a, p.b) for p in pm.pairs] == [(0, 2), (0, 3), (1, 3)]
+    assert model.ruled_out == (0, 1, 2) and model.likelihood_simulator.model.ncon == 0
+    assert not model.contact_reached({"a": np.deg2rad([15.0, 20.0, 25.0])}).any()
+    scene = model.scene
+    angles = {o.target: o.values[:, 0] for o in scene.observations}
+    folded = dict(angles, hinge2=np.full_like(angles["hinge2"], np.deg2rad(170.0)))
+    left = ruled_out_pairs(_with_angles(scene, folded), pm)
+    assert 0 not in left and 2 in left
+    # one joint unmeasured: the links below it cannot be placed
+    scene3 = dataclasses.replace(scene, observations=tuple(
+        o for o in scene.observations if o.target != "hinge3"))
+    assert ruled_out_pairs(scene3, pm) == ()
+
+
+def test_the_links_placed_from_measured_angles_are_where_the_rollout_puts_them():
+    """The positions the forecast reads off the angles (the model's kinematics) equal the
+    rollout's own body positions at those angles: physdsl's noise-free rollout as the data."""
+    from physdsl.physics.ruled_out import _jointed_sides
+
+    model = compile_phys(CHAIN / "naive.phys")
+    pm = model.simulator.model
+    roll = model.simulate({"a": np.asarray(np.deg2rad(20.0))})
+    times = model.scene.observations[0].times
+    rows = np.rint(times / pm.dt).astype(int)
+    angles = {name: np.asarray(roll.joint_pos)[rows, j] for j, name in enumerate(pm.joint_names)}
+    sides = _jointed_sides(_with_angles(model.scene, angles), pm, pm.nsteps * pm.dt)
+    assert sorted(sides) == [0, 1, 2, 3]
+    for i, side in sides.items():
+        np.testing.assert_allclose(side.track, np.asarray(roll.body_pos)[rows, i], atol=1e-12)
+        assert side.radius == pytest.approx(0.1)
+    # slack grows down the chain (each joint's 3 mrad noise on a longer lever)
+    slack = [sides[i].slack for i in range(4)]
+    assert all(a < b for a, b in zip(slack, slack[1:]))
