@@ -58,6 +58,16 @@ def nuisance_pairs(scene) -> list[tuple[str, str]]:
     return [tuple(p) for p in scene.contact_pairs if frozenset(p) not in fitted]
 
 
+def fitted_pairs(model) -> list[tuple[str, str]]:
+    """``nuisance_pairs`` of ``model``'s scene but those its likelihood leaves out: the
+    recording rules them out and every draw is checked to stay clear of them
+    (``physics.ruled_out``), so none impacts and each would add exactly nothing."""
+    pm = model.simulator.model
+    names = pm.body_names
+    left = {frozenset((names[pm.pairs[k].a], names[pm.pairs[k].b])) for k in model.ruled_out}
+    return [p for p in nuisance_pairs(model.scene) if frozenset(p) not in left]
+
+
 def scale_name(pair) -> str:
     return f"{PREFIX}{pair[0]},{pair[1]}"
 
@@ -122,7 +132,7 @@ def marginal_covariance(model, problem, mode, width: float = WIDTH) -> dict | No
     (the sensitivity d theta / d eta times ``width``); where they can, the data's own precision
     on eta does. J and G by central differences of the augmented scene's rollout (no
     refit, no second Jacobian program); H is the fit's own Gauss-Newton curvature."""
-    pairs = nuisance_pairs(model.scene)
+    pairs = fitted_pairs(model)
     gn = gauss_newton_fn(problem)
     if not pairs or gn is None or getattr(model.scene, "experiments", None) is not None:
         return None
@@ -146,4 +156,4 @@ def marginal_covariance(model, problem, mode, width: float = WIDTH) -> dict | No
             "eta_sd": np.sqrt(np.diag(np.linalg.inv(M))).tolist(), "width": width}
 
 
-__all__ = ["WIDTH", "METHOD", "nuisance_pairs", "augmented_scene", "marginal_covariance"]
+__all__ = ["WIDTH", "METHOD", "nuisance_pairs", "fitted_pairs", "augmented_scene", "marginal_covariance"]

@@ -348,7 +348,7 @@ def _contact_term(model, problem, mode, keep, Xr, m) -> dict | None:
     no scatter between blocks, so the block check's scale does not include it). None where the
     scene has no pair with a fixed restitution (nothing computed), else its figures and
     whether it widened."""
-    if not contact_law.nuisance_pairs(model.scene):
+    if not contact_law.fitted_pairs(model):
         return None
     try:
         found = None if mode is None else contact_law.marginal_covariance(model, problem, mode)

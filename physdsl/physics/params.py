@@ -71,14 +71,11 @@ def _dh_transform(dh, values, q_offset_theta=0.0, q_offset_d=0.0):
     return quat, trans
 
 
-def evaluate_params(scene: Scene, model: PhysicsModel, values) -> dict:
-    """The params pytree: per-body arrays (B, ...), joint anchors/axes, q0/v0, effect params."""
+def reference_poses(scene: Scene, model: PhysicsModel, values):
+    """Per body, at the reference configuration: position, orientation (body -> world), and its
+    joint's world anchor and axis (the kinematics' geometry; DH frames composed down the
+    chain). Lists of B arrays."""
     B = model.nbody
-    masses, inertias, coms, vols, csizes = [], [], [], [], []
-    for i in range(B):
-        m, I, c, v, s = _body_mass_props(scene, i, model.joints[i].kind == "fixed", values)
-        masses.append(m), inertias.append(I), coms.append(c), vols.append(v), csizes.append(s)
-
     ref_pos: list = [None] * B
     ref_quat: list = [None] * B
     frame: list = [None] * B  # DH frame (quat, pos) of each body at the reference configuration
@@ -107,6 +104,18 @@ def evaluate_params(scene: Scene, model: PhysicsModel, values) -> dict:
                 anchor[i] = _ev(joint.anchor, values) if joint.anchor is not None else pos
                 if joint.axis is not None:
                     axis[i] = normalize(evaluate(joint.axis, values))
+
+    return ref_pos, ref_quat, anchor, axis
+
+
+def evaluate_params(scene: Scene, model: PhysicsModel, values) -> dict:
+    """The params pytree: per-body arrays (B, ...), joint anchors/axes, q0/v0, effect params."""
+    B = model.nbody
+    masses, inertias, coms, vols, csizes = [], [], [], [], []
+    for i in range(B):
+        m, I, c, v, s = _body_mass_props(scene, i, model.joints[i].kind == "fixed", values)
+        masses.append(m), inertias.append(I), coms.append(c), vols.append(v), csizes.append(s)
+    ref_pos, ref_quat, anchor, axis = reference_poses(scene, model, values)
 
     q0, v0 = [], []
     for i in model.order:

@@ -27,7 +27,7 @@ from .contact import contact_margin
 from .idle import PRIMITIVES, bounding_radius
 from .inertia import contact_size
 from .kinematics import forward_kinematics
-from .params import evaluate_params, shape_size
+from .params import reference_poses, shape_size
 from .structure import PhysicsModel
 
 CLEARANCE_SIGMAS = 4.0  # noise scales of clearance beyond the contact margin
@@ -131,8 +131,11 @@ def _jointed_sides(scene: Scene, model: PhysicsModel, end: float) -> dict:
     for tj in model.joints:  # identity quaternions where a body off the paths has one
         if tj.kind in ("ball", "free"):
             q[:, tj.qadr + (3 if tj.kind == "free" else 0)] = 1.0
-    values = {u.name: np.ones(u.shape) for u in scene.unknowns}  # nothing on the paths reads them
-    prm = evaluate_params(scene, model, values)
+    # the geometry alone: no pose on the paths reads an unknown (bodies off them may)
+    poses = reference_poses(scene, model, {u.name: np.ones(u.shape) for u in scene.unknowns})
+    B = model.nbody
+    prm = dict(zip(("ref_pos", "ref_quat", "anchor", "axis"), map(jnp.stack, poses)),
+               mass=jnp.zeros(B), com=jnp.zeros((B, 3)), inertia=jnp.zeros((B, 3, 3)))
     zero_v = jnp.zeros(model.nv)
     pos = np.asarray(jax.vmap(lambda qt: forward_kinematics(model, prm, qt, zero_v).pos)(
         jnp.asarray(q)))
