@@ -30,7 +30,7 @@ from .errors import ModelError, PhysTypeError
 from .expr import evaluate, references
 from .observe import sensor, trajectory
 from .physics import build_simulator
-from .physics.idle import clear
+from .physics.idle import clearance
 from .physics.ruled_out import ruled_out_pairs, without_pairs
 from .render.likelihood import scene_image_log_likelihood
 from .scene import Observation, Prior, Scene, Unknown
@@ -234,17 +234,19 @@ class Model:
         the recording ruled out came within their reach: ``contact_reached``)."""
         return type(self)(self.scene, self.until, every_contact=True)
 
-    def reaches_left_out(self, values, rollout):
-        """Whether ``rollout`` (the likelihood's, at ``values``; it has the bodies' positions
-        and velocities) comes within reach of a contact pair the likelihood leaves out:
-        ``idle.clear``'s rule, under which the rollout with every pair is this one (traced)."""
+    def left_out_clearance(self, values, rollout):
+        """How far (m) ``rollout`` (the likelihood's, at ``values``; it has the bodies'
+        positions and velocities) stays beyond the reach of the contact pairs the likelihood
+        leaves out, at the closest: ``idle.clear``'s rule, under which the rollout with every
+        pair is this one, holds where positive (traced)."""
         full = self.simulator
-        return ~clear(full.model, full.params(values), rollout.body_pos, rollout.body_vel,
-                      self.ruled_out)
+        return clearance(full.model, full.params(values), rollout.body_pos, rollout.body_vel,
+                         self.ruled_out)
 
     def contact_reached(self, values) -> np.ndarray:
-        """``reaches_left_out`` per draw of ``values`` (name -> (n, *shape)); all False where
-        no pair is left out."""
+        """Per draw of ``values`` (name -> (n, *shape)), whether its rollout comes within reach
+        of a pair the likelihood leaves out (``left_out_clearance`` not positive); all False
+        where no pair is left out."""
         n = len(next(iter(values.values()))) if values else 1
         if not self.ruled_out:
             return np.zeros(n, bool)
@@ -252,7 +254,7 @@ class Model:
         def build():
             def reached(v):
                 roll = self.likelihood_simulator.simulate(v, ("body_pos", "body_vel", "t"))
-                return self.reaches_left_out(v, roll)
+                return self.left_out_clearance(v, roll) <= 0.0
             return jax.jit(lambda vs: jax.lax.map(reached, vs))
 
         return np.asarray(self.cached("contact-reached", build)(

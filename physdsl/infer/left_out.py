@@ -1,6 +1,6 @@
 """The check of a fit whose likelihood left out the contact pairs the recording rules out
 (``physics.ruled_out``): every draw of its posterior pass must stay out of their reach
-(``Model.reaches_left_out``, ``idle.clear``'s exact rule), else ``ContactReached`` makes
+(``Model.left_out_clearance`` positive: ``idle.clear``'s exact rule), else ``ContactReached`` makes
 ``infer`` fit again with every pair (``Model.with_every_contact``)."""
 from __future__ import annotations
 
@@ -8,7 +8,8 @@ import numpy as np
 
 from ..errors import InferenceError
 
-REACHED_SITE = "contact_reached:"  # the posterior pass's per-draw flag (not a site of the model)
+CLEARANCE_SITE = "contact_clearance:"  # the posterior pass's per-draw clearance of the pairs
+# left out (m; not a site of the model): reached where not positive
 
 
 class ContactReached(InferenceError):

@@ -9,11 +9,18 @@ see (terms in two directions at once, a contact that starts between the points) 
 farthest from the mode show: ``CHECKED`` of them are rolled out, and where their predictions
 differ from the expansion by more than ``CHECK_TOL`` noise sds, or their log-likelihoods by
 more than ``CHECK_LL_TOL`` nats, or a curve exceeds ``CURVE_TOL`` noise sds at one posterior
-sd, the expansion is declined and the caller rolls out every draw (``output.posterior_pass``;
-also where the likelihood leaves out contact pairs, ``left_out``, whose check needs every
-draw's rollout). Otherwise every draw's predictions are the expansion's and its
-log-likelihood is read off them by one small compiled program (no physics): 2 dim + 1 +
-``CHECKED`` rollouts a mode instead of one a draw.
+sd, the expansion is declined and the caller rolls out every draw (``output.posterior_pass``).
+Otherwise every draw's predictions are the expansion's and its log-likelihood is read off them
+by one small compiled program (no physics): 2 dim + 1 + ``CHECKED`` rollouts a mode instead of
+one a draw.
+
+Where the likelihood leaves out contact pairs the recording rules out (``left_out``: every
+draw must stay out of their reach), the rolled-out points' clearances (``Model.
+left_out_clearance``) stand for the draws': the expansion holds only where each is positive
+and the mode's exceeds ``REACH_MARGIN`` times the most the clearance can fall at the farthest
+draw by its slope and curve along the directions (|slope| |z| + max |curve| |z|^2). A chain
+whose links stay 17 cm apart, moved by microns across the posterior, passes; a ball that
+grazes a ground left out is rolled out draw by draw.
 """
 from __future__ import annotations
 
@@ -23,7 +30,7 @@ import numpy as np
 
 from ..ahead import Program
 from ..compile import PRED_PREFIX
-from .left_out import REACHED_SITE
+from .left_out import CLEARANCE_SITE
 from .problem import drawn
 
 STEP = 2.0  # posterior sds from the mode to the points along each direction: nonlinearity
@@ -34,6 +41,8 @@ CHECK_TOL = 0.05  # noise sds: the most a checked draw's predictions may differ 
 # expansion (at about 3.5 sds out, where a term in two directions is 12x its size at 1 sd)
 CHECK_LL_TOL = 1.0  # nats: the most a checked draw's log-likelihood (all measurements) may
 # differ; 12x smaller at a draw 1 sd out, the error an ELPD would carry
+REACH_MARGIN = 2.0  # how many times the clearance's largest fall across the draws (by the
+# expansion of the clearance itself) the mode's clearance must exceed
 CHUNK = 64  # draws per call of the compiled read-off (one compile for any number of draws)
 
 
@@ -44,7 +53,7 @@ def local_pass(model, problem, flat: np.ndarray, means: np.ndarray, sqrts: np.nd
     (draws in chain order), from each mode's expansion; None where some mode's expansion does
     not hold (or the likelihood checks contact pairs that it leaves out: ``left_out``)."""
     chains, samples, dim = flat.shape
-    if problem.draw is None or model.ruled_out or dim == 0:
+    if problem.draw is None or dim == 0:
         return None
     sites = [None] * chains
     for group in _same_gaussian(means, sqrts):
@@ -81,6 +90,8 @@ def _pass(model, problem, rows, mean, sqrt):
     points = [mean] + [mean + s * STEP * sqrt[:, k] for k in range(dim) for s in (1.0, -1.0)]
     exact = drawn(problem, points + [rows[i] for i in far])
     m = 2 * dim + 1
+    if model.ruled_out and not _clear_of_left_out(exact, m, z):
+        return None
     preds = _preds(model, [e[0] for e in exact])
     slope, curve = {}, {}
     for name, p in preds.items():
@@ -116,6 +127,22 @@ def _pass(model, problem, rows, mean, sqrt):
     return out, ll
 
 
+def _clear_of_left_out(exact, m: int, z) -> bool:
+    """Whether every draw ``z`` (n, dim) stays clear of the pairs the likelihood leaves out, by
+    the clearances of the rolled-out points ``exact`` (the mode, the 2 dim points along the
+    directions, then the checked draws): all positive, and the mode's ``REACH_MARGIN`` times
+    beyond the clearance's largest fall by its slope and curve at the farthest draw."""
+    c = np.array([float(e[0][CLEARANCE_SITE]) for e in exact])
+    if not np.all(c > 0.0):  # (NaN: not clear)
+        return False
+    plus, minus = c[1:m:2], c[2:m:2]
+    slope = (plus - minus) / (2.0 * STEP)
+    curve = (plus + minus - 2.0 * c[0]) / (2.0 * STEP ** 2)
+    far = float(np.max(np.linalg.norm(z, axis=1), initial=0.0))
+    fall = np.linalg.norm(slope) * far + np.max(np.abs(curve), initial=0.0) * far ** 2
+    return bool(c[0] > REACH_MARGIN * fall)
+
+
 def _constrained(problem, x) -> dict:
     return jax.device_get(problem.draw.constrain(jnp.asarray(x)))
 
@@ -129,7 +156,7 @@ def _preds(model, sites: list) -> dict:
 def _values(model, sites: list) -> dict:
     """The constrained values (every unknown's, the noise scales' among them) stacked from
     draws' sites (or from ``draw.constrain``'s outputs)."""
-    names = [k for k in sites[0] if not k.startswith(PRED_PREFIX) and k != REACHED_SITE]
+    names = [k for k in sites[0] if not k.startswith(PRED_PREFIX) and k != CLEARANCE_SITE]
     return {k: np.stack([np.asarray(s[k]) for s in sites]) for k in names}
 
 

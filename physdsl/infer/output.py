@@ -28,7 +28,7 @@ from .block_check import BLOCKS
 from .blocks import Pacer
 from .intervals import add_robust, shown_posterior
 from . import left_out, posterior_data
-from .left_out import REACHED_SITE
+from .left_out import CLEARANCE_SITE
 from .local_pass import local_pass
 from .problem import drawn
 from .threads import thread_map
@@ -127,8 +127,8 @@ def posterior_pass(model, problem, flat: np.ndarray, on_chunk=None, reached=None
         outs = drawn(problem, flat[done:done + m])
         pacer.record(m, time.process_time() - t0)
         sites, loglik = jax.tree_util.tree_map(lambda *a: np.stack(a), *outs)
-        if reached is not None and REACHED_SITE in sites:
-            reached.append(sites[REACHED_SITE])
+        if reached is not None and CLEARANCE_SITE in sites:
+            reached.append(np.asarray(sites[CLEARANCE_SITE]) <= 0.0)
         parts.append(_sites(model, (sites, loglik)))
         done += m
         if on_chunk is not None:

@@ -22,7 +22,7 @@ from ..compile import PRED_PREFIX
 from ..errors import InferenceError
 from ..physics.forward import FORWARD_MODE_MAX
 from .base import Problem, cached, gauss_newton, safe_logdensity, value_and_grad_fn
-from .left_out import REACHED_SITE
+from .left_out import CLEARANCE_SITE
 from .threads import split, thread_map, workers
 
 _PROBLEMS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
@@ -100,7 +100,7 @@ def draw_function(model, unravel, neg_log_prior):
         lp = sum((jnp.sum(v) for v in ll.values()), -neg_log_prior(x))
         sites = {**values, **{PRED_PREFIX + k: v for k, v in preds.items()}}
         if model.ruled_out:  # the check of a likelihood without some pairs (``left_out``)
-            sites[REACHED_SITE] = model.reaches_left_out(values, rollout)
+            sites[CLEARANCE_SITE] = model.left_out_clearance(values, rollout)
         return sites, ll, jnp.where(jnp.isfinite(lp), lp, -jnp.inf)
 
     # in the structure's cache by name, like every compiled stage (shared by other data)

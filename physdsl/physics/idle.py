@@ -50,10 +50,16 @@ def bounding_radius(kind: str, size):
 def clear(model: PhysicsModel, prm: dict, pos, vel, pairs=None):
     """True if no contact pair (of ``pairs``, indices into ``model.pairs``; default all) comes
     within reach along the flight ``pos``/``vel`` (T, B, 3)."""
+    return clearance(model, prm, pos, vel, pairs) > 0.0
+
+
+def clearance(model: PhysicsModel, prm: dict, pos, vel, pairs=None):
+    """How far (m) the pairs (of ``pairs``; default all) stay beyond their reach along the
+    flight ``pos``/``vel`` (T, B, 3), at the closest: ``clear`` where positive (inf: no pair)."""
     span = model.dt * model.substeps  # between recorded states
     speed = jnp.linalg.norm(vel, axis=-1)  # (T, B)
     speed = jnp.maximum(speed[1:], speed[:-1])  # over each interval
-    ok = jnp.asarray(True)
+    least = jnp.asarray(jnp.inf, pos.dtype)
     for p in model.pairs if pairs is None else [model.pairs[k] for k in pairs]:
         a, b, ka, kb = p.a, p.b, p.kind_a, p.kind_b
         if ka == "plane":
@@ -66,8 +72,9 @@ def clear(model: PhysicsModel, prm: dict, pos, vel, pairs=None):
             gap = (jnp.linalg.norm(pos[:, a] - pos[:, b], axis=-1) - ra
                    - bounding_radius(kb, prm["size"][b]))
         gap = jnp.minimum(gap[1:], gap[:-1])
-        ok = ok & jnp.all(gap > contact_margin + 2.0 * span * (speed[:, a] + speed[:, b]))
-    return ok
+        least = jnp.minimum(least, jnp.min(
+            gap - contact_margin - 2.0 * span * (speed[:, a] + speed[:, b])))
+    return least
 
 
 def free_unless_near(model: PhysicsModel, prm: dict, free, contact, values, forward_only: bool):

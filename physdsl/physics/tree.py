@@ -37,8 +37,11 @@ FUSED_MM_MAX = 4096
 # at most this many dofs, a contact-free tree whose rollout loop runs as one kernel
 # (``xla_flags``) takes the recursive algorithms: with no cost per operation their fewer flops
 # win (side by side, us/step: pendulum case 4.36 -> 1.66, cart-pole 8.28 -> 2.17, chain5
-# 4.66 -> 2.11); above it their compile grows too fast (chain10 forward 5.4 -> 17.3 CPU s)
-RECURSIVE_MAX = 5
+# 4.66 -> 2.11); above it their compile grows too fast: a fit's Gauss-Newton program (forward
+# mode through an RK4 rollout of 3 000 steps, first call) of a hinge chain, recursive / here,
+# 2 links 31.5 / 19.1 s, 3 links 63.0 / 32.4 s, 4 links 117-124 / 38 s, while a call costs
+# 38 / 34, 58 / 79-112, 61-81 / 135-153 ms: a refit compiles once and calls it a few dozen times
+RECURSIVE_MAX = 2
 
 
 def applies(model: PhysicsModel) -> bool:

@@ -92,3 +92,25 @@ def test_a_cut_fits_later_predictions_are_the_rollouts(projectile_model, monkeyp
     b = rolled.posterior_predictive[pred].values[:, :, later]
     assert np.max(np.abs(a - b)) < local_pass.CHECK_TOL * NOISE
     assert np.max(b.std(axis=(0, 1))) > 50 * np.max(np.abs(a - b))
+
+
+def _rolled(clearances):
+    return [({local_pass.CLEARANCE_SITE: np.asarray(c)}, None) for c in clearances]
+
+
+def test_draws_stand_clear_of_a_pair_left_out_only_with_room_beyond_their_spread():
+    """The clearance (m) at the mode and at +-STEP sds along two directions, then a checked
+    draw: the mode's must exceed REACH_MARGIN times its fall at the farthest draw (|z| 3.5)."""
+    z = np.array([[3.5, 0.0], [0.5, -1.0]])
+    # 0.17 m at the mode, moved by microns across the posterior: clear
+    assert local_pass._clear_of_left_out(_rolled([0.17, 0.17002, 0.16998, 0.17001, 0.16999,
+                                                  0.17003]), 5, z)
+    # a slope of 0.01 m per sd: 3.5 sds out it has fallen 0.035 m of the 0.05 m at the mode
+    assert not local_pass._clear_of_left_out(_rolled([0.05, 0.07, 0.03, 0.05, 0.05, 0.02]), 5, z)
+    # the same slope with 0.1 m at the mode: twice the fall fits
+    assert local_pass._clear_of_left_out(_rolled([0.1, 0.12, 0.08, 0.1, 0.1, 0.07]), 5, z)
+    # a curve that the points either side see: 0.01 m per sd^2, 0.12 m at 3.5 sds
+    assert not local_pass._clear_of_left_out(_rolled([0.1, 0.14, 0.14, 0.1, 0.1, 0.2]), 5, z)
+    # one point within reach, or not finite: not clear whatever the mode's room
+    assert not local_pass._clear_of_left_out(_rolled([1.0, 1.0, 1.0, 1.0, 1.0, -1e-6]), 5, z)
+    assert not local_pass._clear_of_left_out(_rolled([1.0, np.nan, 1.0, 1.0, 1.0, 1.0]), 5, z)
