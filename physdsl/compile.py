@@ -227,7 +227,7 @@ class Model:
     # -- pieces -------------------------------------------------------------------------
     def _ruled_out(self) -> tuple[int, ...]:
         """The contact pairs the recording rules out (``physics.ruled_out``)."""
-        return ruled_out_pairs(self.scene, self.simulator.model, self.until)
+        return ruled_out_pairs(self.scene, self.simulator.model)
 
     def with_every_contact(self) -> "Model":
         """This Model with every contact pair in its likelihood (where a fit without the pairs

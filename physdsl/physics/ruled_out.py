@@ -34,11 +34,12 @@ CLEARANCE_SIGMAS = 4.0  # noise scales of clearance beyond the contact margin
 ACCEL_BOUND = 30.0  # m/s^2: how fast a body may curve away from the line between two samples
 
 
-def ruled_out_pairs(scene: Scene, model: PhysicsModel, until: float | None = None
-                    ) -> tuple[int, ...]:
-    """Indices into ``model.pairs`` of the pairs the recording keeps apart (see the module);
-    none where the fit sees only data up to ``until`` (the rest of the horizon is unmeasured)."""
-    if not model.ncon or until is not None:
+def ruled_out_pairs(scene: Scene, model: PhysicsModel) -> tuple[int, ...]:
+    """Indices into ``model.pairs`` of the pairs the recording keeps apart (see the module).
+    A fit that sees the data up to a cut-off alone (leave-future-out) is forecast from the
+    whole recording too: the forecast picks the programs, and the check of its draws over the
+    whole horizon keeps the fit exact (so it shares the whole fit's programs)."""
+    if not model.ncon:
         return ()
     end = model.nsteps * model.dt
     jointed = _jointed_sides(scene, model, end)
