@@ -65,7 +65,7 @@ def test_with_the_options_rollout_loops_compile_into_one_kernel():
 def test_small_contact_free_trees_take_the_recursive_path(monkeypatch):
     """At most ``tree.RECURSIVE_MAX`` dofs and no contact: the recursive algorithms, where the
     loop is one kernel; the vectorised tree path above that size, or without the options."""
-    few, many = build_simulator(chain(3)).model, build_simulator(chain(8)).model
+    few, many = build_simulator(chain(2)).model, build_simulator(chain(3)).model
     monkeypatch.setattr(xla_flags, "in_effect", lambda: True)
     assert not tree.applies(few) and tree.applies(many)
     monkeypatch.setattr(xla_flags, "in_effect", lambda: False)
