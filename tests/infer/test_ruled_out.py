@@ -189,8 +189,8 @@ def test_the_chains_fit_without_its_pairs_is_the_fit_with_them(monkeypatch):
                         lambda m, p, flat, *a, **k: calls.append(len(flat)) or every_draw(m, p, flat, *a, **k))
     model = compile_phys(CHAIN / "naive.phys")
     fit = physdsl.infer(model, backend="map", progress=False)
-    assert calls == []
     draws = fit.posterior["a"].values.ravel()
+    assert draws.size not in calls  # (the starts' screening rolls out 64 prior draws)
     assert not model.contact_reached({"a": draws[[0, draws.argmin(), draws.argmax()]]}).any()
     full = physdsl.infer(model.with_every_contact(), backend="map", progress=False)
     np.testing.assert_allclose(float(fit.posterior["a"].mean()), float(full.posterior["a"].mean()),
