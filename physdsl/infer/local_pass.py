@@ -51,7 +51,7 @@ def local_pass(model, problem, flat: np.ndarray, means: np.ndarray, sqrts: np.nd
     """(sites, pointwise log-likelihood) of each draw of ``flat`` (chains, samples, dim),
     chain c drawn as ``means[c] + sqrts[c] @ z``, as ``output.posterior_pass`` returns them
     (draws in chain order), from each mode's expansion; None where some mode's expansion does
-    not hold (or the likelihood checks contact pairs that it leaves out: ``left_out``)."""
+    not hold (or, where the likelihood leaves contact pairs out, the draws may reach them)."""
     chains, samples, dim = flat.shape
     if problem.draw is None or dim == 0:
         return None

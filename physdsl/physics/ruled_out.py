@@ -16,10 +16,11 @@ from __future__ import annotations
 import dataclasses
 from typing import NamedTuple
 
-import numpy as np
+import functools
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from ..expr import evaluate, references
 from ..scene import Scene
@@ -137,9 +138,7 @@ def _jointed_sides(scene: Scene, model: PhysicsModel, end: float) -> dict:
     B = model.nbody
     prm = dict(zip(("ref_pos", "ref_quat", "anchor", "axis"), map(jnp.stack, poses)),
                mass=jnp.zeros(B), com=jnp.zeros((B, 3)), inertia=jnp.zeros((B, 3, 3)))
-    zero_v = jnp.zeros(model.nv)
-    pos = np.asarray(jax.vmap(lambda qt: forward_kinematics(model, prm, qt, zero_v).pos)(
-        jnp.asarray(q)))
+    pos = np.asarray(_positions(model, prm, jnp.asarray(q)))
     ref_pos, anchor = np.asarray(prm["ref_pos"]), np.asarray(prm["anchor"])
     gaps = np.diff(times)
     out = {}
@@ -164,6 +163,13 @@ def _jointed_sides(scene: Scene, model: PhysicsModel, end: float) -> dict:
         out[i] = _Side(track=track, times=times, radius=float(bounding_radius(shape.kind, csize)),
                        slack=CLEARANCE_SIGMAS * error + accel * float(gaps.max()) ** 2 / 8)
     return out
+
+
+@functools.partial(jax.jit, static_argnums=0)
+def _positions(model: PhysicsModel, prm: dict, q):
+    """Every body's origin (N, B, 3) at the joint coordinates ``q`` (N, nq): one compile per
+    structure, where a Model of it is made many times (a refine's refits)."""
+    return jax.vmap(lambda qt: forward_kinematics(model, prm, qt, jnp.zeros(model.nv)).pos)(q)
 
 
 def _fixed_geometry(scene: Scene, model: PhysicsModel, i: int) -> bool:
