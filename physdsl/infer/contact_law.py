@@ -33,6 +33,7 @@ from numpyro.infer.util import constrain_fn
 
 from ..compile import Model
 from ..expr import Binary, Ref, references
+from ..physics.ruled_out import pair_names
 from ..scene import EffectUse
 from ..syntax.contact_sugar import SUGAR_PARAM
 from .base import cached, gauss_newton_fn
@@ -62,9 +63,7 @@ def fitted_pairs(model) -> list[tuple[str, str]]:
     """``nuisance_pairs`` of ``model``'s scene but those its likelihood leaves out: the
     recording rules them out and every draw is checked to stay clear of them
     (``physics.ruled_out``), so none impacts and each would add exactly nothing."""
-    pm = model.simulator.model
-    names = pm.body_names
-    left = {frozenset((names[pm.pairs[k].a], names[pm.pairs[k].b])) for k in model.ruled_out}
+    left = pair_names(model.simulator.model, model.ruled_out)
     return [p for p in nuisance_pairs(model.scene) if frozenset(p) not in left]
 
 

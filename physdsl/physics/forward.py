@@ -180,8 +180,7 @@ def _propagate(closed, leaves: list, seeds: list, P: int, reach: dict):
         else:
             _while(eqn, env, tenv, P)
     _stretch(stretch, env, tenv, needed[-1] if jaxpr.eqns else set())
-    return ([_value(env, v) for v in jaxpr.outvars],
-            [None if isinstance(v, core.Literal) else tenv.get(v) for v in jaxpr.outvars])
+    return _read(jaxpr.outvars, env, tenv)
 
 
 def _columns(jaxpr, leaves, cols) -> dict:
@@ -366,7 +365,7 @@ def _scan(eqn, env, tenv, P) -> None:
     is the vmapped jvp of the old one."""
     p = eqn.params
     nc, nk = _scan_sizes(p)
-    ins, tans = _inputs(eqn, env, tenv)
+    ins, tans = _read(eqn.invars, env, tenv)
     consts, init, xs = ins[:nc], ins[nc:nc + nk], ins[nc + nk:]
     dc = [k for k in range(nc) if tans[k] is not None]
     dx = [k for k in range(len(xs)) if tans[nc + nk + k] is not None]
@@ -420,7 +419,7 @@ def _while(eqn, env, tenv, P) -> None:
     to find the carries with tangents and those batched."""
     p = eqn.params
     cn, bn = p["cond_nconsts"], p["body_nconsts"]
-    ins, tans = _inputs(eqn, env, tenv)
+    ins, tans = _read(eqn.invars, env, tenv)
     cconsts, bconsts, init = ins[:cn], ins[cn:cn + bn], ins[cn + bn:]
     nk = len(init)
     body = inline_calls(p["body_jaxpr"])
@@ -452,15 +451,12 @@ def _while(eqn, env, tenv, P) -> None:
                 tenv[v] = dfinal[fk.index(k)]
 
 
-def _value(env: dict, v):
-    """The value of atom ``v`` (a literal's own, a variable's from ``env``)."""
-    return v.val if isinstance(v, core.Literal) else env[v]
-
-
-def _inputs(eqn, env: dict, tenv: dict) -> tuple[list, list]:
-    """(values, tangents or None) of ``eqn``'s inputs."""
-    return ([_value(env, v) for v in eqn.invars],
-            [None if isinstance(v, core.Literal) else tenv.get(v) for v in eqn.invars])
+def _read(atoms, env: dict, tenv: dict) -> tuple[list, list]:
+    """(values, tangents or None) of ``atoms`` (an equation's inputs, a jaxpr's outputs): a
+    literal's own value and no tangent, a variable's from ``env`` and ``tenv``."""
+    literal = [isinstance(v, core.Literal) for v in atoms]
+    return ([v.val if lit else env[v] for v, lit in zip(atoms, literal)],
+            [None if lit else tenv.get(v) for v, lit in zip(atoms, literal)])
 
 
 def _is_float(x) -> bool:

@@ -224,10 +224,16 @@ def _refs(exprs) -> bool:
     return any(references(e) for e in exprs if e is not None)
 
 
+def pair_names(model: PhysicsModel, pairs: tuple[int, ...]) -> set[frozenset]:
+    """The pairs ``pairs`` (indices into ``model.pairs``) as sets of their two body names, as
+    a scene's ``contact_pairs`` name them."""
+    names = model.body_names
+    return {frozenset((names[model.pairs[k].a], names[model.pairs[k].b])) for k in pairs}
+
+
 def without_pairs(scene: Scene, model: PhysicsModel, pairs: tuple[int, ...]) -> Scene:
     """``scene`` without the contact pairs ``pairs`` (indices into ``model.pairs``): the scene
     the likelihood simulates."""
-    names = model.body_names
-    drop = {frozenset((names[model.pairs[k].a], names[model.pairs[k].b])) for k in pairs}
+    drop = pair_names(model, pairs)
     return dataclasses.replace(scene, contact_pairs=tuple(
         p for p in scene.contact_pairs if frozenset(p) not in drop))
