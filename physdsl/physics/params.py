@@ -146,6 +146,7 @@ def evaluate_params(scene: Scene, model: PhysicsModel, values) -> dict:
         "volume": jnp.stack([jnp.asarray(v, dtype=float) for v in vols]),
         "size": jnp.stack(csizes),
         "ref_pos": jnp.stack(ref_pos), "ref_quat": jnp.stack(ref_quat),
+        "ref_rot": quat_to_mat(jnp.stack(ref_quat)),
         "anchor": jnp.stack(anchor), "axis": jnp.stack(axis),
         "q0": cat(q0), "v0": cat(v0), "effects": effects,
     }

@@ -188,7 +188,7 @@ def tree_kinematics(model: PhysicsModel, prm: dict, q, v) -> Kin:
     qD, R, tD = X[:, :4], X[:, 4:13].reshape(B, 3, 3), X[:, 13:]
     S, own = _subspaces(model, prm, R, tD, qb, x)
     quat = normalize(quat_mul(qD, prm["ref_quat"]))
-    rot = mm(R, quat_to_mat(prm["ref_quat"]))
+    rot = mm(R, prm["ref_rot"])
     pos = mv(R, prm["ref_pos"]) + tD
     vb = jnp.concatenate([v, jnp.zeros(1, q.dtype)])[vidx]  # (B, K)
     Sv_par = jnp.sum(S * jnp.where(own, 0.0, vb)[:, None, :], -1)

@@ -25,7 +25,7 @@ from .structure import PhysicsModel, TreeJoint
 
 _CACHE: "weakref.WeakKeyDictionary[PhysicsModel, Fused | None]" = weakref.WeakKeyDictionary()
 # per-body params the core bodies take from their own row (mass, com, inertia: composites)
-_BODY_ROWS = ("ref_pos", "ref_quat", "anchor", "axis", "volume", "size")
+_BODY_ROWS = ("ref_pos", "ref_quat", "ref_rot", "anchor", "axis", "volume", "size")
 
 
 class Fused(NamedTuple):
@@ -133,13 +133,13 @@ def expand(fused: Fused, prm: dict, core):
     own reference pose; ``core`` rides along for the dynamics (``Kin.core``)."""
     r, rows = fused.root, fused.core_bodies
     core = jax.lax.optimization_barrier(core)
-    Rref_c = quat_to_mat(prm["ref_quat"][rows])
+    Rref_c = prm["ref_rot"][rows]
     RD = mm(core.rot, jnp.swapaxes(Rref_c, -1, -2))[r]  # (B, 3, 3) each body's rigid motion
     tD = (core.pos - mv(RD[rows], prm["ref_pos"][rows]))[r]
     qD = quat_mul(core.quat, quat_conj(prm["ref_quat"][rows]))[r]
     pos = mv(RD, prm["ref_pos"]) + tD
     quat = quat_mul(qD, prm["ref_quat"])
-    rot = mm(RD, quat_to_mat(prm["ref_quat"]))
+    rot = mm(RD, prm["ref_rot"])
     com = pos + mv(rot, prm["com"])
     ang = core.ang[r]
     vcom = core.vcom[r] + jnp.cross(ang, com - core.com[r])
