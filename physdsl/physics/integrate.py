@@ -200,14 +200,21 @@ def _lcp_step(model, prm, state, t, h, forward_only=False):
 
     def contact(o):
         """The LCP step for the rest of the step from the state at the first impact: the
-        impulse acts along the normals and lever arms of the bodies where they touch."""
+        impulse acts along the normals and lever arms of the bodies where they touch. An
+        unsplit step starts where this step does (tau = 0): its kinematics, free velocity and
+        contacts are those above, not computed again (a resting or rolling contact's every
+        step; only an impact's split step needs them at tau)."""
         s, tau = o
-        kin2 = kinematics(model, prm, s.q, s.v, with_jac=True)
-        a2 = accel(model, prm, kin2, applied_load(model, prm, kin2, s, t + tau, t))
-        h2 = h - tau
-        v_free2 = s.v + h2 * a2
-        con2 = cs.closing_within(cs.detect_all(model, prm, kin2, s.v), v_free2, h2)
-        return lcp((prm, s.q, s.v, kin2, con2, v_free2), t + tau, h2)
+
+        def at_impact(s):
+            kin2 = kinematics(model, prm, s.q, s.v, with_jac=True)
+            a2 = accel(model, prm, kin2, applied_load(model, prm, kin2, s, t + tau, t))
+            v_free2 = s.v + (h - tau) * a2
+            return kin2, cs.closing_within(cs.detect_all(model, prm, kin2, s.v), v_free2,
+                                           h - tau), v_free2
+
+        kin2, con2, v_free2 = jax.lax.cond(split, at_impact, lambda s: (kin, con, v_free), s)
+        return lcp((prm, s.q, s.v, kin2, con2, v_free2), t + tau, h - tau)
 
     def apart(o):
         warm = state.lcp_warm
