@@ -19,7 +19,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..infer.backends.map import LaplaceError, find_mode, laplace_sqrt
+from ..infer.backends.map import LaplaceError, best_known_mode, find_mode, laplace_sqrt
 from ..infer.levenberg_marquardt import newton_gain
 from ..infer.base import gauss_newton_fn, value_and_grad_fn
 from ..infer.problem import model_problem, start_position
@@ -29,13 +29,19 @@ STRONG = math.log(10.0)  # Δlog Z of strong evidence (Jeffreys: a Bayes factor 
 
 
 def laplace_log_evidence(model, idata=None, *, values: dict | None = None) -> float | None:
-    """Laplace log marginal likelihood of ``model`` at the mode near its fit (the most likely
-    posterior draw of ``idata``, or constrained ``values``); None where Laplace is unreliable."""
+    """Laplace log marginal likelihood of ``model`` at the mode of its fit: the best mode the
+    fit remembered on this Model's data (``remember_modes``), else the mode found from the
+    most likely posterior draw of ``idata`` (or from constrained ``values``); None where
+    Laplace is unreliable."""
     if idata is not None and idata.attrs.get("fit_note"):
         return None  # the fit's own Laplace step failed there: no Gaussian describes the mode
     problem = model_problem(model)
-    start = values if values is not None else point_estimate(model, idata)
-    x = find_mode(problem, start_position(problem, jax.random.PRNGKey(0), start), steps=50)
+    # the fit's own best mode where it remembered one (a MAP fit's: searching again from its
+    # best draw cost rolling_ball's refine 64 s, a kink's stalled steps each time)
+    x = best_known_mode(problem) if values is None else None
+    if x is None:
+        start = values if values is not None else point_estimate(model, idata)
+        x = find_mode(problem, start_position(problem, jax.random.PRNGKey(0), start), steps=50)
     gn = gauss_newton_fn(problem) if not noise_unknowns(model) else None
     if gn is not None:
         v, g, H = (np.asarray(a, dtype=float) for a in gn(jnp.asarray(x)))

@@ -76,3 +76,52 @@ def test_quadratic_evidence_from_a_point_off_the_mode_and_not_positive_definite(
 def test_model_probabilities_softmax_equal_prior_odds_and_na():
     p = model_probabilities({"a": 0.0, "b": np.log(3.0), "c": None})
     assert p["a"] == pytest.approx(0.25) and p["b"] == pytest.approx(0.75) and p["c"] is None
+
+
+def test_evidence_after_a_map_fit_starts_at_the_fits_best_mode(tmp_path, monkeypatch):
+    """A MAP fit remembers its modes; the evidence is taken there (no second mode search, which
+    on a contact scene stalls at a kink for several rollouts) and equals the closed form."""
+    from physdsl import api
+    from physdsl.diagnose import evidence
+    from physdsl.infer.backends.map import best_known_mode
+    from physdsl.infer.problem import model_problem
+
+    times = np.linspace(0.0, 1.0, 21)
+    write_csv(tmp_path / "data.csv", times, np.zeros((21, 3)), "ball")
+    model = Model(load_scene(tmp_path, FLIGHT))
+    truth = {"ball.position": np.array([0.05, -0.02, 1.1]), "ball.velocity": np.array([2.7, 0.4, 5.3])}
+    y = np.asarray(model.predict(truth)["ball.position"])
+    write_csv(tmp_path / "data.csv", times, y + np.random.default_rng(1).normal(0, 0.005, y.shape),
+              "ball")
+    model = Model(load_scene(tmp_path, FLIGHT))
+    idata = api.infer(model, backend="map", chains=2, samples=16, progress=False)
+    problem = model_problem(model)
+    mode = best_known_mode(problem)
+    assert mode is not None and mode.shape == (problem.dim,)
+    searched = evidence.laplace_log_evidence(model, values=point_values(model, problem, mode))
+
+    def no_search(*a, **k):
+        raise AssertionError("the fit's mode is known: no search")
+
+    monkeypatch.setattr(evidence, "find_mode", no_search)
+    assert evidence.laplace_log_evidence(model, idata) == pytest.approx(searched, abs=1e-6)
+
+
+def point_values(model, problem, x) -> dict:
+    """Constrained values of the unknowns at flat unconstrained ``x``."""
+    sites = problem.to_constrained(jnp.asarray(x), problem.data)
+    return {u.name: np.asarray(sites[u.name]) for u in model.unknowns}
+
+
+def test_best_known_mode_is_the_highest_remembered_on_this_data():
+    from types import SimpleNamespace
+
+    from physdsl.infer.backends.map import best_known_mode, remember_modes
+
+    problem = SimpleNamespace(cache={}, data=object())
+    assert best_known_mode(problem) is None
+    remember_modes(problem, [np.array([1.0, 2.0]), np.array([3.0, 4.0]), np.array([5.0, 6.0])],
+                   [-10.0, -2.0, -np.inf])
+    assert np.array_equal(best_known_mode(problem), [3.0, 4.0])
+    other = SimpleNamespace(cache=problem.cache, data=object())  # another dataset's Problem
+    assert best_known_mode(other) is None

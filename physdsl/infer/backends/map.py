@@ -135,6 +135,16 @@ def known_mode(problem, x) -> float | None:
     return record.get(np.asarray(x, dtype=float).tobytes())
 
 
+def best_known_mode(problem) -> np.ndarray | None:
+    """The remembered mode (``remember_modes``) with the highest log density on this
+    Problem's data, or None where none is remembered there."""
+    data, record = problem.cache.get(FOUND_MODES, (None, {}))
+    finite = {k: lp for k, lp in record.items() if np.isfinite(lp)}
+    if data is not problem.data or not finite:
+        return None
+    return np.frombuffer(max(finite, key=finite.get), dtype=float).copy()
+
+
 FOUND_MODES = "modes-found"  # problem.cache key of ``remember_modes``
 
 
