@@ -22,7 +22,7 @@ from .effects import EFFECTS
 from .integrate import State, applied_load
 from .kinematics import Kin
 from .rows import place, take
-from .spatial import mv, normalize, quat_integrate, quat_to_mat
+from .spatial import mv, quat_integrate
 from .structure import PhysicsModel
 
 
@@ -72,7 +72,7 @@ def frame(model: PhysicsModel, prm: dict) -> Frame | None:
     if tuple(model.free_bodies) == tuple(range(model.nbody)):
         return None
     pos0 = prm["ref_pos"]
-    com0 = pos0 + mv(quat_to_mat(normalize(prm["ref_quat"])), prm["com"])
+    com0 = pos0 + mv(prm["ref_rot"], prm["com"])
     return Frame(pos0, com0, jnp.zeros_like(pos0))
 
 

@@ -13,7 +13,6 @@ motion at |v| >> eps not at all (the law is saturated there).
 """
 import jax.numpy as jnp
 
-from .spatial import quat_to_mat
 from .structure import PhysicsModel
 
 ROTATING = ("hinge", "ball", "free")
@@ -75,7 +74,7 @@ def _rotates(model: PhysicsModel, body: int) -> bool:
 def _composite(prm, bodies):
     """Mass, world centre of mass and world inertia about it of rigidly joined ``bodies`` at the
     reference configuration."""
-    R = [quat_to_mat(prm["ref_quat"][b]) for b in bodies]
+    R = [prm["ref_rot"][b] for b in bodies]
     m = [prm["mass"][b] for b in bodies]
     x = [prm["ref_pos"][b] + r @ prm["com"][b] for b, r in zip(bodies, R)]
     mass = sum(m)

@@ -20,7 +20,7 @@ import numpy as np
 from .. import xla_flags
 from . import tree
 from .effects.base import Load
-from .spatial import mm, mv, quat_conj, quat_mul, quat_to_mat, spatial_inertia
+from .spatial import mm, mv, quat_conj, quat_mul, spatial_inertia
 from .structure import PhysicsModel, TreeJoint
 
 _CACHE: "weakref.WeakKeyDictionary[PhysicsModel, Fused | None]" = weakref.WeakKeyDictionary()
@@ -106,7 +106,7 @@ def core_params(fused: Fused, prm: dict) -> dict:
     ``prm["core"]``): each core body's own rows, with the mass, centre of mass (in its body
     frame) and inertia (about that centre, body axes) of it and its welded bodies, from their
     reference poses (at which the weld holds them)."""
-    R = quat_to_mat(prm["ref_quat"])  # (B, 3, 3)
+    R = prm["ref_rot"]  # (B, 3, 3)
     m = prm["mass"]
     com_w = prm["ref_pos"] + mv(R, prm["com"])  # (B, 3) world centres at the reference pose
     mc = _sum_members(fused, m)
