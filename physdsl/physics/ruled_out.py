@@ -14,9 +14,8 @@ and run again with every contact where a draw comes within reach.
 from __future__ import annotations
 
 import dataclasses
-from typing import NamedTuple
-
 import functools
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp

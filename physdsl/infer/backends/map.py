@@ -129,20 +129,23 @@ def remember_modes(problem, modes, lps) -> None:
 
 def known_mode(problem, x) -> float | None:
     """The log density of ``x`` where it is a mode remembered on this Problem's data, else None."""
-    data, record = problem.cache.get(FOUND_MODES, (None, {}))
-    if data is not problem.data:
-        return None
-    return record.get(np.asarray(x, dtype=float).tobytes())
+    return _remembered(problem).get(np.asarray(x, dtype=float).tobytes())
 
 
 def best_known_mode(problem) -> np.ndarray | None:
     """The remembered mode (``remember_modes``) with the highest log density on this
     Problem's data, or None where none is remembered there."""
-    data, record = problem.cache.get(FOUND_MODES, (None, {}))
-    finite = {k: lp for k, lp in record.items() if np.isfinite(lp)}
-    if data is not problem.data or not finite:
+    finite = {k: lp for k, lp in _remembered(problem).items() if np.isfinite(lp)}
+    if not finite:
         return None
     return np.frombuffer(max(finite, key=finite.get), dtype=float).copy()
+
+
+def _remembered(problem) -> dict:
+    """The remembered modes (flat bytes -> log density) of this Problem's data; empty where the
+    record is another dataset's (one record per structure's cache: the last fit's)."""
+    data, record = problem.cache.get(FOUND_MODES, (None, {}))
+    return record if data is problem.data else {}
 
 
 FOUND_MODES = "modes-found"  # problem.cache key of ``remember_modes``
