@@ -31,7 +31,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from . import levenberg_marquardt
-from .backends.map import FOUND_MODES, find_mode
+from .backends.map import best_known_mode, find_mode
 from .base import gauss_newton_fn, value_fn
 from .threads import thread_map
 
@@ -82,10 +82,9 @@ def without_block(problem, lo: float, hi: float, last: bool):
 def full_mode(problem, draws) -> np.ndarray:
     """The full data's mode: the best one the run's mode search remembered on this data
     (``map.remember_modes``), else a Levenberg-Marquardt polish of the draws' mean."""
-    data, record = problem.cache.get(FOUND_MODES, (None, {}))
-    if data is problem.data and record:
-        best = max(record, key=record.get)
-        return np.frombuffer(best, dtype=float).copy()
+    best = best_known_mode(problem)
+    if best is not None:
+        return best
     return find_mode(problem, np.asarray(draws, dtype=float).mean(axis=0), POLISH_STEPS)
 
 

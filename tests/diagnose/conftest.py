@@ -6,24 +6,18 @@ without it (``naive_text``). Data: the truth scene is compiled against placehold
 the measurement times, rolled out at known values, and seeded Gaussian noise is added; the
 naive scene is then fitted to those data (MAP + Laplace, the fast backend ``diagnose``
 itself refits with). Compiling the physics dominates the cost, so every fit is made once per
-module (fixtures) and the persistent XLA cache (a temporary folder, this session only) lets
-identical computations of separately loaded copies of a scene reuse their executables.
+module (fixtures) and the suite's persistent XLA cache (tests/conftest.py) lets identical
+computations of separately loaded copies of a scene reuse their executables.
 """
 from __future__ import annotations
 
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-import jax
 import numpy as np
 import pytest
 
 import physdsl  # noqa: F401 - float64
-
-_CACHE_DIR = tempfile.mkdtemp(prefix="physdsl-diagnose-tests-xla-")
-jax.config.update("jax_compilation_cache_dir", _CACHE_DIR)
-jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
 
 
 def write_csv(path: Path, times, values, name: str) -> Path:

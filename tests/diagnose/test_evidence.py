@@ -116,7 +116,7 @@ def point_values(model, problem, x) -> dict:
 def test_best_known_mode_is_the_highest_remembered_on_this_data():
     from types import SimpleNamespace
 
-    from physdsl.infer.backends.map import best_known_mode, remember_modes
+    from physdsl.infer.backends.map import REMEMBERED_DATASETS, best_known_mode, remember_modes
 
     problem = SimpleNamespace(cache={}, data=object())
     assert best_known_mode(problem) is None
@@ -125,3 +125,12 @@ def test_best_known_mode_is_the_highest_remembered_on_this_data():
     assert np.array_equal(best_known_mode(problem), [3.0, 4.0])
     other = SimpleNamespace(cache=problem.cache, data=object())  # another dataset's Problem
     assert best_known_mode(other) is None
+    # a fit to another dataset of the structure (refine's leave-future-out fit) keeps this
+    # dataset's record; the oldest ages out after REMEMBERED_DATASETS datasets
+    remember_modes(other, [np.array([7.0, 8.0])], [-1.0])
+    assert np.array_equal(best_known_mode(other), [7.0, 8.0])
+    assert np.array_equal(best_known_mode(problem), [3.0, 4.0])
+    for _ in range(REMEMBERED_DATASETS - 1):
+        remember_modes(SimpleNamespace(cache=problem.cache, data=object()), [np.zeros(2)], [0.0])
+    assert best_known_mode(problem) is None
+    assert np.array_equal(best_known_mode(other), [7.0, 8.0])

@@ -3,27 +3,18 @@
 Data are made with physdsl itself: a scene is compiled against placeholder data at the
 measurement times, rolled out at known values, and Gaussian noise with a fixed seed is added.
 Compiling the physics dominates the cost of these tests, so one Model per scene is shared
-by a module (``Problem`` caches compiled stages on it), and the persistent XLA cache (in a
-temporary folder, for this session only) lets identical computations of separately loaded
-copies of a scene (e.g. through the CLI) reuse their executables.
+by a module (``Problem`` caches compiled stages on it), and the suite's persistent XLA cache
+(tests/conftest.py) lets identical computations of separately loaded copies of a scene (e.g.
+through the CLI) reuse their executables.
 """
 from __future__ import annotations
 
-import atexit
-import shutil
-import tempfile
 from pathlib import Path
 
-import jax
 import numpy as np
 import pytest
 
 import physdsl  # noqa: F401 - float64
-
-_CACHE_DIR = tempfile.mkdtemp(prefix="physdsl-infer-tests-xla-")
-atexit.register(shutil.rmtree, _CACHE_DIR, ignore_errors=True)
-jax.config.update("jax_compilation_cache_dir", _CACHE_DIR)
-jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
 
 # A ball thrown through air with linear drag: unknown launch velocity and drag coefficient.
 PROJECTILE = """\

@@ -121,10 +121,12 @@ def find_modes(problem, positions, steps: int = 300, on_mode=None) -> jnp.ndarra
 def remember_modes(problem, modes, lps) -> None:
     """Mark ``modes`` (with log densities ``lps``) as optimised on ``problem``'s data, so a
     later ``find_modes`` there keeps them. Kept in the Problem's cache, tied to its data
-    object (the cache is shared by every Model of one structure; another dataset's modes
-    are not modes here)."""
+    object: the cache is shared by every Model of one structure, and another dataset's modes
+    are not modes here. A record per dataset, the ``REMEMBERED_DATASETS`` latest, so a fit
+    to other data between (refine's leave-future-out fit) does not erase this one's."""
     record = {np.asarray(m, dtype=float).tobytes(): float(lp) for m, lp in zip(modes, lps)}
-    problem.cache[FOUND_MODES] = (problem.data, record)
+    others = [(d, r) for d, r in problem.cache.get(FOUND_MODES, []) if d is not problem.data]
+    problem.cache[FOUND_MODES] = (others + [(problem.data, record)])[-REMEMBERED_DATASETS:]
 
 
 def known_mode(problem, x) -> float | None:
@@ -142,13 +144,16 @@ def best_known_mode(problem) -> np.ndarray | None:
 
 
 def _remembered(problem) -> dict:
-    """The remembered modes (flat bytes -> log density) of this Problem's data; empty where the
-    record is another dataset's (one record per structure's cache: the last fit's)."""
-    data, record = problem.cache.get(FOUND_MODES, (None, {}))
-    return record if data is problem.data else {}
+    """The remembered modes (flat bytes -> log density) of this Problem's data; empty where
+    none were remembered on it (or its record has aged out)."""
+    for data, record in problem.cache.get(FOUND_MODES, []):
+        if data is problem.data:
+            return record
+    return {}
 
 
-FOUND_MODES = "modes-found"  # problem.cache key of ``remember_modes``
+FOUND_MODES = "modes-found"  # problem.cache key of ``remember_modes``: [(data, record)]
+REMEMBERED_DATASETS = 4  # datasets whose modes a structure's cache keeps (the latest)
 
 
 MINOR_MODE = 10.0  # log-density units below the best mode: a basin with a negligible share
