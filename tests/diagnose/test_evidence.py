@@ -105,6 +105,13 @@ def test_evidence_after_a_map_fit_starts_at_the_fits_best_mode(tmp_path, monkeyp
 
     monkeypatch.setattr(evidence, "find_mode", no_search)
     assert evidence.laplace_log_evidence(model, idata) == pytest.approx(searched, abs=1e-6)
+    # as a candidate's refit does (``refit_task.measure``): a fit of the first part of the
+    # record (the same structure, so the same compiled Problem cache) comes between the fit
+    # and its evidence; the fit's modes are still its own, no search
+    cut = Model(model.scene, until=0.6)
+    api.infer(cut, backend="map", chains=2, samples=16, progress=False)
+    assert best_known_mode(model_problem(cut)) is not None
+    assert evidence.laplace_log_evidence(model, idata) == pytest.approx(searched, abs=1e-6)
 
 
 def point_values(model, problem, x) -> dict:
