@@ -123,15 +123,10 @@ def data_start(problem, x0, others=()) -> np.ndarray | None:
     of the data (see the module's docstring); None where the data say nothing about them.
     ``others``: more flat points whose initial-state coordinates are tried as starts of that
     small fit (the best result wins)."""
-    model = problem.model
-    scene = model.scene
-    names = initial_state_unknowns(scene)
-    estimates = model_estimates(model)
-    if not names or not estimates:
+    found = _objective(problem)
+    if found is None:
         return None
-    fn, mask = _objective(problem, tuple(sorted(names)), estimates)
-    if not mask.any():
-        return None
+    fn, mask = found
     x0 = np.asarray(x0, dtype=float)
     best = None
     for start in (x0, *(np.asarray(o, dtype=float) for o in others)):
@@ -164,11 +159,35 @@ def _fill(mask, z):
     return out
 
 
-def _objective(problem, names: tuple[str, ...], estimates: list[Estimate]):
-    """(jitted x -> (misfit at t = 0 + negative log prior, gradient), mask of x's coordinates
-    that belong to ``names``). The estimates' numbers are arguments of the compiled program,
-    not constants in it, so another recording of the same scene reuses it (physdsl/cache.py)."""
+def data_start_ahead(problem) -> None:
+    """Start compiling ``data_start``'s program (``physdsl.ahead``); nothing where it has none."""
+    found = _program(problem)
+    if found is not None:
+        program, numbers, _ = found
+        program.ahead(jax.ShapeDtypeStruct((problem.dim,), jnp.result_type(float)), numbers)
+
+
+def _objective(problem):
+    """(x -> (misfit at t = 0 + negative log prior, gradient), mask of x's initial-state
+    coordinates); None where the data say nothing about the initial state."""
+    found = _program(problem)
+    if found is None:
+        return None
+    program, numbers, mask = found
+    return (lambda x: program(x, numbers)), mask
+
+
+def _program(problem):
+    """(compiled (x, numbers) -> (misfit, gradient), the data's numbers, mask of x's
+    coordinates that belong to the initial-state unknowns), or None where there are none or
+    no track says anything about them. The estimates' numbers are arguments of the compiled
+    program, not constants in it, so another recording of the same scene reuses it
+    (physdsl/cache.py)."""
     model = problem.model
+    names = tuple(sorted(initial_state_unknowns(model.scene)))
+    estimates = model_estimates(model)
+    if not names or not estimates:
+        return None
     sim = model.simulator
 
     layout = unconstrained_layout(model)
@@ -183,9 +202,11 @@ def _objective(problem, names: tuple[str, ...], estimates: list[Estimate]):
     # prior draws thrown as the data say (``multistart``) share it (each compiled its own)
     key = ("data-start-misfit", names, tuple((e.quantity, e.target, e.recording,
                                               e.slope is None) for e in estimates))
-    jitted = cached(problem, key, lambda: Program(jax.value_and_grad(
+    if not mask.any():
+        return None
+    program = cached(problem, key, lambda: Program(jax.value_and_grad(
         _misfit(model, sim, estimates, unravel))))
-    return (lambda x: jitted(x, numbers)), mask
+    return program, numbers, mask
 
 
 def _misfit(model, sim, estimates, unravel):

@@ -50,20 +50,6 @@ def _build_problem(model) -> Problem:
                    draw)
 
 
-def compile_ahead(problem: Problem) -> None:
-    """Start compiling a fit's two large programs in the background (``physdsl.ahead``): the
-    rollout that the posterior pass and the fit's quality read, then the Gauss-Newton program
-    (which the fit calls first, and compiles itself if the rollout is still compiling)."""
-    if problem.gauss_newton is None:
-        return
-    model = problem.model
-    x = jax.ShapeDtypeStruct((problem.dim,), jnp.result_type(float))
-    unravel, _ = unraveler(unconstrained_layout(model))
-    values = jax.eval_shape(lambda x: constrain_fn(model.prior_values, (), {}, unravel(x)), x)
-    model.fit_simulate_ahead(values)
-    problem.gauss_newton.ahead(x, problem.data)
-
-
 def _functions(model):
     """(log density (x, data), to_constrained (x, data), dim) of ``model``'s structure."""
     unravel, dim = unraveler(unconstrained_layout(model))
@@ -174,6 +160,17 @@ def unraveler(layout):
 
 def prior_draws_unconstrained(problem: Problem, key, n: int) -> np.ndarray:
     """``n`` prior draws as flat unconstrained vectors (n, dim); runs no physics."""
+    return np.asarray(_prior_draws_program(problem, n)(jax.random.split(key, n)))
+
+
+def prior_draws_ahead(problem: Problem, n: int) -> None:
+    """Start compiling ``prior_draws_unconstrained``'s program for ``n`` draws (``ahead``)."""
+    keys = jax.eval_shape(lambda: jax.random.split(jax.random.PRNGKey(0), n))
+    _prior_draws_program(problem, n).ahead(keys)
+
+
+def _prior_draws_program(problem: Problem, n: int) -> Program:
+    """keys (n, ...) -> (n, dim) prior draws, flat and unconstrained (one program per n)."""
     model = problem.model
 
     def one(k):
@@ -181,8 +178,7 @@ def prior_draws_unconstrained(problem: Problem, key, n: int) -> np.ndarray:
             values = model.prior_values()
         return ravel_pytree(unconstrain_fn(model.prior_values, (), {}, values))[0]
 
-    fn = cached(problem, ("prior-draws", n), lambda: Program(jax.vmap(one)))
-    return np.asarray(fn(jax.random.split(key, n)))
+    return cached(problem, ("prior-draws", n), lambda: Program(jax.vmap(one)))
 
 
 def start_position(problem: Problem, key, start: dict) -> np.ndarray:

@@ -29,9 +29,9 @@ from .blocks import Pacer
 from .init import with_init
 from .interrupt import Interrupted, critical, termination
 from .left_out import ContactReached
-from .multistart import describe, search, start_points
+from .multistart import compile_ahead, describe, search, start_points
 from .output import build_inference_data, save_run
-from .problem import compile_ahead, make_problem, model_problem
+from .problem import make_problem, model_problem
 from .progress import Stages
 
 CHECKPOINT = "checkpoint.pkl"
@@ -89,7 +89,7 @@ def _run(model, backend, settings, outdir, resume, force, progress, positions, q
     key = jax.random.PRNGKey(settings.seed)
     _, k_warm, k_sample = jax.random.split(key, 3)  # the first key initialises (``starts``)
     with stages.stage("compile") as st:
-        compile_ahead(model_problem(model))
+        compile_ahead(model_problem(model), starts=positions is None)
         if positions is not None:
             problem, positions = model_problem(model), jax.numpy.asarray(positions)
             if positions.shape != (settings.chains, problem.dim):

@@ -1,6 +1,6 @@
-"""A fit compiles its posterior rollout beside its Gauss-Newton program (``physdsl.ahead``,
-``infer.problem.compile_ahead``): both run the executables compiled ahead, the jitted
-functions compile nothing, and the fit equals one with compiling ahead off."""
+"""A fit compiles its posterior rollout, its Gauss-Newton program and its starts' programs ahead
+(``physdsl.ahead``, ``infer.multistart.compile_ahead``): each runs the executable compiled
+ahead, the jitted functions compile nothing, and the fit equals one with compiling ahead off."""
 from __future__ import annotations
 
 import physdsl
@@ -9,6 +9,7 @@ import numpy as np
 
 from physdsl import ahead
 from physdsl.compile import compile as compile_phys
+from physdsl.infer.multistart import CENTRE_DRAWS
 from physdsl.infer.problem import model_problem
 
 from .conftest import PROJECTILE_NOISE, PROJECTILE_TRUTH, projectile_text, simulated_scene
@@ -24,7 +25,12 @@ def test_a_fit_runs_the_programs_it_compiled_ahead(tmp_path, monkeypatch):
     fit = physdsl.infer(model, **SETTINGS)
     gn = model_problem(model).gauss_newton
     rollout = model.likelihood_simulator._jit
-    for program in (gn, rollout):
+    # and the starts' programs (the prior's centre, the start from the data), queued behind
+    # the Gauss-Newton program: the fit compiled them while it waited for that one
+    cache = model_problem(model).cache
+    centre = cache[("prior-draws", CENTRE_DRAWS)]
+    from_data = next(v for k, v in cache.items() if isinstance(k, tuple) and k[0] == "data-start-misfit")
+    for program in (gn, rollout, centre, from_data):
         assert len(program._ahead) == 1
         assert program.jitted._cache_size() == 0  # every call ran the executable made ahead
         assert next(iter(program._ahead.values())).compiled is not None
