@@ -10,7 +10,8 @@ Tracing stays on the calling thread: numpyro's effect handlers are one stack per
 
 A compile not yet started when its program is called is taken back and done by the caller
 (it would otherwise wait behind the queue); a caller that must wait for a running one
-compiles the next queued programs meanwhile, so both cores stay busy. A compile running when
+compiles the next queued programs meanwhile, so both cores stay busy (except those queued
+as needed ``later``, which could hold it up past its wait). A compile running when
 the process exits is waited for (XLA aborts if the interpreter ends under a running compile;
 those still queued are dropped), so only programs that will likely run should be prepared.
 ``PHYSDSL_COMPILE_AHEAD=off`` compiles everything where it is called, as JAX does.
@@ -68,8 +69,9 @@ def _traced(args) -> bool:
 class _Pending:
     """A lowered program and its compile: a Future from the background thread, or done here."""
 
-    def __init__(self, lowered):
+    def __init__(self, lowered, later: bool = False):
         self.lowered = lowered
+        self.later = later  # not taken back by a caller waiting for another (``ahead``)
         self.compiled = None
         self.lock = threading.Lock()  # a posterior pass calls its program from threads
         self.called = False
@@ -118,7 +120,7 @@ def _take_back_next(waiting: _Pending) -> bool:
         _QUEUED[:] = [p for p in _QUEUED if not (p.future.running() or p.future.done())]
         queued = list(_QUEUED)
     for p in queued:
-        if p is not waiting and p.lock.acquire(blocking=False):
+        if p is not waiting and not p.later and p.lock.acquire(blocking=False):
             try:
                 if p._take_back():
                     _unqueue(p)
@@ -171,9 +173,12 @@ class Program:
                                                               self._bound(static), dynamic, key)
         return self._stored[key]
 
-    def ahead(self, *args) -> None:
+    def ahead(self, *args, later: bool = False) -> None:
         """Trace and lower for ``args`` (arrays or ``jax.ShapeDtypeStruct``s) now, compile in the
-        background; nothing where that is off or already done for these types."""
+        background; nothing where that is off or already done for these types. ``later``: a
+        program needed well after the ones queued before it, which a caller waiting for one
+        of those does not compile meanwhile (it could outlast the wait and hold the caller up:
+        the background thread compiles it, or its own first caller)."""
         if not enabled():
             return
         dynamic, static = self._split(args)
@@ -182,7 +187,7 @@ class Program:
             stored = self._stored_program(dynamic, static, key)
             lowered = self.jitted.lower(*args) if stored is None else \
                 stored.call.lower(*jax.tree_util.tree_leaves(dynamic))
-            self._ahead[key] = _Pending(lowered)
+            self._ahead[key] = _Pending(lowered, later)
 
     def _cache_size(self) -> int:
         """Executables made so far (jit's, as ``jax.jit``'s own count, those loaded from disk,

@@ -1,8 +1,8 @@
 """Compiling ahead (``physdsl.ahead``): a Program prepared for some argument types runs the
 executable compiled in the background, with the jitted function's results; other types and
 tracers take the jitted function; a compile the background thread has not started is taken
-back by its caller, and a caller waiting for a running one compiles the queued ones meanwhile;
-a process that exits with a compile running ends normally."""
+back by its caller, and a caller waiting for a running one compiles the queued ones meanwhile
+(but those queued as needed later); a process that exits with a compile running ends normally."""
 from __future__ import annotations
 
 import subprocess
@@ -106,6 +106,32 @@ def test_a_queued_compile_is_taken_back_and_a_waiting_caller_compiles_the_next(o
     pending = second._ahead[next(iter(second._ahead))]
     assert pending.future.cancelled() and pending.compiled is not None
     np.testing.assert_allclose(second(jnp.ones(3), data), _rollout(jnp.ones(3), data))
+
+
+def test_a_waiting_caller_leaves_a_program_queued_for_later_to_the_background(on, monkeypatch):
+    release = threading.Event()
+    started = threading.Event()
+    real = ahead._compile_unless_exiting
+
+    def slow(lowered):  # the background thread holds the first program until released
+        if not started.is_set():
+            started.set()
+            release.wait(30)
+        return real(lowered)
+
+    monkeypatch.setattr(ahead, "_compile_unless_exiting", slow)
+    data = {"a": jnp.asarray(0.9)}
+    first, later = ahead.Program(_fresh()), ahead.Program(_fresh())
+    first.ahead(jnp.ones(2), data)
+    later.ahead(jnp.ones(3), data, later=True)
+    assert started.wait(30)
+    threading.Timer(1.0, release.set).start()
+    np.testing.assert_allclose(first(jnp.ones(2), data), _rollout(jnp.ones(2), data))
+    pending = later._ahead[next(iter(later._ahead))]
+    assert not pending.future.cancelled()  # not taken back: the background thread compiles it
+    assert pending.future.result(30) is not None
+    np.testing.assert_allclose(later(jnp.ones(3), data), _rollout(jnp.ones(3), data))
+    assert pending.compiled is not None and later.jitted._cache_size() == 0
 
 
 def test_a_process_that_exits_while_compiling_ends_normally():

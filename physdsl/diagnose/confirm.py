@@ -11,7 +11,7 @@ import numpy as np
 from ..ahead import enabled as compiling_ahead
 from ..compile import Model
 from ..infer.fit import quick_fit
-from ..infer.multistart import compile_ahead
+from ..infer.fit_ahead import compile_ahead
 from ..infer.problem import model_problem
 from .candidates import Candidate
 from .diagnosis import Ranked, Refit
@@ -215,7 +215,7 @@ def _next_effect(ranked: list[Ranked], r: Ranked) -> list[Ranked]:
 
 def refits_ahead(draft: Draft, rows: list[Ranked]) -> list[Model]:
     """Where refits run here: start compiling the fit programs of the refits of ``rows`` in
-    the background (``infer.multistart.compile_ahead``), so each compiles while the baseline and
+    the background (``infer.fit_ahead``), so each compiles while the baseline and
     the refits before it run; their Models, which hold the programs until the refits take
     them. ``confirm`` prepares the sure refits at its start, and an extra refit (one that runs
     only while no refit has explained the misfit) while the refit before it runs, once an

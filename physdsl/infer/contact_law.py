@@ -31,6 +31,7 @@ import jax.numpy as jnp
 import numpy as np
 from numpyro.infer.util import constrain_fn
 
+from ..ahead import Program
 from ..compile import Model
 from ..expr import Binary, Ref, references
 from ..physics.ruled_out import pair_names
@@ -91,7 +92,24 @@ def augmented_scene(scene, pairs):
 
 
 def _residual_fn(model, problem, pairs):
-    """(x (d,), scales (P,)) -> every standardised residual of the augmented scene (one
+    """(x (d,), scales (P,)) -> ``_residual_program`` at the Problem's data, as numpy."""
+    fn = _residual_program(model, problem, pairs)
+    return lambda x, scales: np.asarray(fn(jnp.asarray(x), jnp.asarray(scales), problem.data))
+
+
+def residuals_ahead(model, problem) -> None:
+    """Start compiling ``marginal_covariance``'s rollout program (``physdsl.ahead``) where it
+    will run: a fit that makes robust intervals compiles it in the background while it
+    searches for its modes (``later``: not while it waits for its Gauss-Newton program)."""
+    pairs = _nuisance_pairs_to_fit(model, problem)
+    if pairs:
+        x = jax.ShapeDtypeStruct((problem.dim,), jnp.result_type(float))
+        scales = jax.ShapeDtypeStruct((len(pairs),), jnp.result_type(float))
+        _residual_program(model, problem, pairs).ahead(x, scales, problem.data, later=True)
+
+
+def _residual_program(model, problem, pairs) -> Program:
+    """(x (d,), scales (P,), data) -> every standardised residual of the augmented scene (one
     vector, ``Model.standardized_residuals``' order, 0 where not measured), compiled once per
     scene structure: x the unconstrained unknowns, scales the pairs' restitution factors."""
     names = [scale_name(p) for p in pairs]
@@ -105,10 +123,17 @@ def _residual_fn(model, problem, pairs):
             full = {**values, **{n: scales[i] for i, n in enumerate(names)}}
             return aug.standardized_residuals(full, aug.predict(full, data=data), data)
 
-        return jax.jit(residuals)
+        return Program(residuals)
 
-    fn = cached(problem, ("contact-law-residuals", tuple(names)), build)
-    return lambda x, scales: np.asarray(fn(jnp.asarray(x), jnp.asarray(scales), problem.data))
+    return cached(problem, ("contact-law-residuals", tuple(names)), build)
+
+
+def _nuisance_pairs_to_fit(model, problem) -> list[tuple[str, str]]:
+    """``fitted_pairs`` where ``marginal_covariance`` can run (a least-squares curvature, one
+    recording), else none."""
+    if gauss_newton_fn(problem) is None or getattr(model.scene, "experiments", None) is not None:
+        return []
+    return fitted_pairs(model)
 
 
 def _central(f, x, directions, h: float) -> np.ndarray:
@@ -131,10 +156,10 @@ def marginal_covariance(model, problem, mode, width: float = WIDTH) -> dict | No
     (the sensitivity d theta / d eta times ``width``); where they can, the data's own precision
     on eta does. J and G by central differences of the augmented scene's rollout (no
     refit, no second Jacobian program); H is the fit's own Gauss-Newton curvature."""
-    pairs = fitted_pairs(model)
-    gn = gauss_newton_fn(problem)
-    if not pairs or gn is None or getattr(model.scene, "experiments", None) is not None:
+    pairs = _nuisance_pairs_to_fit(model, problem)
+    if not pairs:
         return None
+    gn = gauss_newton_fn(problem)
     mode = np.asarray(mode, dtype=float)
     H = np.asarray(gn(mode)[2], dtype=float)
     L = np.linalg.cholesky(np.linalg.inv(0.5 * (H + H.T)))  # posterior sd's axes: L L^T = H^-1
@@ -155,4 +180,5 @@ def marginal_covariance(model, problem, mode, width: float = WIDTH) -> dict | No
             "eta_sd": np.sqrt(np.diag(np.linalg.inv(M))).tolist(), "width": width}
 
 
-__all__ = ["WIDTH", "METHOD", "nuisance_pairs", "fitted_pairs", "augmented_scene", "marginal_covariance"]
+__all__ = ["WIDTH", "METHOD", "nuisance_pairs", "fitted_pairs", "augmented_scene", "marginal_covariance",
+           "residuals_ahead"]

@@ -24,8 +24,8 @@ from numpyro.infer.util import constrain_fn, potential_energy
 from . import levenberg_marquardt as lm
 from .backends.map import MINOR_MODE, find_mode, major_modes, remember_modes
 from .base import cached, gauss_newton_fn, value_and_grad_fn, value_fn
-from .data_starts import data_start, data_start_ahead
-from .problem import prior_draws_ahead, prior_draws_unconstrained, unconstrained_layout, unraveler
+from .data_starts import data_start
+from .problem import prior_draws_unconstrained, unconstrained_layout, unraveler
 from .spectral_starts import screened_starts
 from .threads import thread_map
 
@@ -40,28 +40,6 @@ class Search:
     modes: np.ndarray  # (chains, dim)
     basins: list[dict] = field(default_factory=list)
     best: int = 0
-
-
-def compile_ahead(problem, starts: bool = True) -> None:
-    """Start compiling a fit's programs in the background (``physdsl.ahead``), in the order the
-    fit needs them: the rollout that the posterior pass and the fit's quality read, the
-    Gauss-Newton program (which the fit calls first, and compiles itself if the rollout is
-    still compiling), then, where the fit makes its own ``starts``, their small programs (the
-    prior's centre, the start from the data). The fit waits for the Gauss-Newton program
-    before it makes its starts; meanwhile it compiles those, queued behind it, itself
-    (``ahead``), so both cores work (the pendulum's ``infer``: 15.0 -> 12.9 s to its first
-    optimisation)."""
-    if problem.gauss_newton is None:
-        return
-    model = problem.model
-    x = jax.ShapeDtypeStruct((problem.dim,), jnp.result_type(float))
-    unravel, _ = unraveler(unconstrained_layout(model))
-    values = jax.eval_shape(lambda x: constrain_fn(model.prior_values, (), {}, unravel(x)), x)
-    model.fit_simulate_ahead(values)
-    problem.gauss_newton.ahead(x, problem.data)
-    if starts:
-        prior_draws_ahead(problem, CENTRE_DRAWS)
-        data_start_ahead(problem)
 
 
 def prior_centre(problem, key) -> np.ndarray:
@@ -372,5 +350,5 @@ def describe(basins: list[dict]) -> list[str]:
     return lines
 
 
-__all__ = ["Search", "compile_ahead", "describe", "prior_centre", "residual_rms", "search",
+__all__ = ["Search", "describe", "prior_centre", "residual_rms", "search",
            "start_points"]

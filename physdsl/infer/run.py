@@ -29,7 +29,8 @@ from .blocks import Pacer
 from .init import with_init
 from .interrupt import Interrupted, critical, termination
 from .left_out import ContactReached
-from .multistart import compile_ahead, describe, search, start_points
+from .fit_ahead import compile_ahead
+from .multistart import describe, search, start_points
 from .output import build_inference_data, save_run
 from .problem import make_problem, model_problem
 from .progress import Stages
@@ -89,7 +90,8 @@ def _run(model, backend, settings, outdir, resume, force, progress, positions, q
     key = jax.random.PRNGKey(settings.seed)
     _, k_warm, k_sample = jax.random.split(key, 3)  # the first key initialises (``starts``)
     with stages.stage("compile") as st:
-        compile_ahead(model_problem(model), starts=positions is None)
+        compile_ahead(model_problem(model), starts=positions is None,
+                      robust=settings.intervals == "robust")
         if positions is not None:
             problem, positions = model_problem(model), jax.numpy.asarray(positions)
             if positions.shape != (settings.chains, problem.dim):

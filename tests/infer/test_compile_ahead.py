@@ -1,5 +1,5 @@
 """A fit compiles its posterior rollout, its Gauss-Newton program and its starts' programs ahead
-(``physdsl.ahead``, ``infer.multistart.compile_ahead``): each runs the executable compiled
+(``physdsl.ahead``, ``infer.fit_ahead``): each runs the executable compiled
 ahead, the jitted functions compile nothing, and the fit equals one with compiling ahead off."""
 from __future__ import annotations
 

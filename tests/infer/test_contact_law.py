@@ -87,6 +87,24 @@ def test_the_term_covers_what_the_impact_informs(collision):
     assert np.all(np.linalg.eigvalsh(found["cov"]) > -1e-12 * np.abs(found["cov"]).max())
 
 
+def test_a_fit_with_robust_intervals_compiles_the_term_ahead(collision, monkeypatch):
+    """``fit_ahead.compile_ahead(robust=True)`` queues the term's rollout program, and the term
+    runs that executable (``physdsl.ahead``); a fit without robust intervals does not queue it."""
+    from physdsl import ahead
+    from physdsl.infer.fit_ahead import compile_ahead
+
+    monkeypatch.setenv(ahead.ENV, "on")
+    problem = model_problem(collision)
+    key = ("contact-law-residuals", ("contact_law:a,b",))
+    compile_ahead(problem, starts=False)
+    assert key not in problem.cache or not problem.cache[key]._ahead
+    compile_ahead(problem, starts=False, robust=True)
+    (pending,) = problem.cache[key]._ahead.values()
+    truth = np.asarray(ravel_pytree(unconstrain_fn(collision.prior_values, (), {}, TRUTH))[0])
+    assert contact_law.marginal_covariance(collision, problem, truth)["pairs"] == ["a,b"]
+    assert pending.called and pending.compiled is not None
+
+
 @pytest.mark.slow
 def test_an_impact_informed_unknown_is_covered_under_another_contact_law(collision):
     """The same through ``infer``: the robust intervals name the term and cover the mass."""
