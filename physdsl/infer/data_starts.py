@@ -195,6 +195,8 @@ def _program(problem):
     leaves = jax.tree_util.tree_leaves_with_path(layout)
     mask = np.concatenate([np.full(int(np.prod(leaf.shape)), _key(path) in names)
                            for path, leaf in leaves]) if leaves else np.zeros(0, bool)
+    if not mask.any():
+        return None
 
     numbers = [tuple(None if a is None else jnp.asarray(a, dtype=float)
                      for a in (e.value, e.value_sd, e.slope, e.slope_sd)) for e in estimates]
@@ -202,8 +204,6 @@ def _program(problem):
     # prior draws thrown as the data say (``multistart``) share it (each compiled its own)
     key = ("data-start-misfit", names, tuple((e.quantity, e.target, e.recording,
                                               e.slope is None) for e in estimates))
-    if not mask.any():
-        return None
     program = cached(problem, key, lambda: Program(jax.value_and_grad(
         _misfit(model, sim, estimates, unravel))))
     return program, numbers, mask

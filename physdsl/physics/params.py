@@ -116,6 +116,7 @@ def evaluate_params(scene: Scene, model: PhysicsModel, values) -> dict:
         m, I, c, v, s = _body_mass_props(scene, i, model.joints[i].kind == "fixed", values)
         masses.append(m), inertias.append(I), coms.append(c), vols.append(v), csizes.append(s)
     ref_pos, ref_quat, anchor, axis = reference_poses(scene, model, values)
+    ref_rot = quat_to_mat(jnp.stack(ref_quat))
 
     q0, v0 = [], []
     for i in model.order:
@@ -124,9 +125,8 @@ def evaluate_params(scene: Scene, model: PhysicsModel, values) -> dict:
         if tj.kind == "free":
             vel = _ev(b.velocity, values, _ZERO3)
             w = _ev(b.angular_velocity, values, _ZERO3)
-            R = quat_to_mat(ref_quat[i])
             q0 += [ref_pos[i], ref_quat[i]]
-            v0 += [vel, R.T @ w]  # angular velocity stored in the body frame
+            v0 += [vel, ref_rot[i].T @ w]  # angular velocity stored in the body frame
         elif tj.kind == "ball":
             qb = normalize(_ev(joint.initial, values, _ID_QUAT))
             w = _ev(joint.initial_velocity, values, _ZERO3)
@@ -146,7 +146,7 @@ def evaluate_params(scene: Scene, model: PhysicsModel, values) -> dict:
         "volume": jnp.stack([jnp.asarray(v, dtype=float) for v in vols]),
         "size": jnp.stack(csizes),
         "ref_pos": jnp.stack(ref_pos), "ref_quat": jnp.stack(ref_quat),
-        "ref_rot": quat_to_mat(jnp.stack(ref_quat)),
+        "ref_rot": ref_rot,
         "anchor": jnp.stack(anchor), "axis": jnp.stack(axis),
         "q0": cat(q0), "v0": cat(v0), "effects": effects,
     }
